@@ -1,0 +1,1 @@
+//! Host-side simulation of dollop jobs.

@@ -1,0 +1,855 @@
+//! Machine and material configuration: the serde types a user writes (TOML on the host,
+//! postcard over USB) in the units they measure, and their validation into `Machine`, the
+//! checked, SI-converted form the flow model and executor run on. Parsing files is the
+//! host's job; every out-of-range or inconsistent value here becomes a `ConfigError`.
+
+use crate::real::Real;
+use crate::rheology::{FlowLaw, Rheology};
+use crate::vol::Vol;
+use core::fmt;
+use serde::{Deserialize, Serialize};
+
+/// Most inlets a config can list (the wire and file formats' limit); a build supports
+/// `N <= MAX_CONFIG_INLETS` of them and refuses configs with more.
+pub const MAX_CONFIG_INLETS: usize = 8;
+/// Longest material name, bytes.
+pub const MATERIAL_NAME_LEN: usize = 24;
+
+/// A whole machine: printhead channel, motion system, control loop and inlets.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Shared channel, nozzle and bead geometry.
+    pub channel: ChannelConfig,
+    /// Axes, limits, speeds.
+    pub motion: MotionConfig,
+    /// Control loop.
+    #[serde(default)]
+    pub control: ControlConfig,
+    /// One entry per inlet (valve + material), in valve order.
+    #[serde(rename = "inlet")]
+    pub inlets: heapless::Vec<InletConfig, MAX_CONFIG_INLETS>,
+}
+
+/// The shared channel and the bead it lays.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelConfig {
+    /// Diameter of the shared channel and nozzle, mm.
+    pub nozzle_diameter_mm: f32,
+    /// Length of the shared channel from the junction to the nozzle tip, mm.
+    pub channel_length_mm: f32,
+    /// Height of the nozzle tip above the layer below while printing, mm. Where it exceeds
+    /// the layer height, a filament of the difference hangs below the nozzle.
+    pub nozzle_height_mm: f32,
+    /// Layer height, mm.
+    pub layer_height_mm: f32,
+    /// Line pitch (spacing of neighbouring beads), mm.
+    pub line_pitch_mm: f32,
+    /// Bead cross-section, mm^2; default `line_pitch_mm * layer_height_mm`.
+    #[serde(default)]
+    pub bead_area_mm2: Option<f32>,
+}
+
+/// Axes X, Y, Z in that order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionConfig {
+    /// Microsteps per mm, per axis.
+    pub steps_per_mm: [f32; 3],
+    /// Lowest reachable coordinate per axis, mm.
+    pub travel_min_mm: [f32; 3],
+    /// Highest reachable coordinate per axis, mm.
+    pub travel_max_mm: [f32; 3],
+    /// Top speed per axis, mm/s.
+    pub max_speed_mm_s: [f32; 3],
+    /// Top acceleration per axis, mm/s^2.
+    pub max_accel_mm_s2: [f32; 3],
+    /// Print speed the `auto` pressures aim for, mm/s.
+    pub print_speed_mm_s: f32,
+    /// Fastest the head may print; the flow must not be able to push it faster, mm/s.
+    pub print_speed_max_mm_s: f32,
+    /// Speed of travel moves (valves closed), mm/s.
+    pub travel_speed_mm_s: f32,
+    /// Highest step rate the drivers take, per axis, steps/s.
+    pub max_step_rate_hz: f32,
+    /// Wait at the end of a bead until the flow has decayed before travelling.
+    #[serde(default = "default_true")]
+    pub wait_for_flow_decay: bool,
+    /// Flow counted as stopped, as a fraction of the highest flow the machine reaches.
+    #[serde(default = "default_stop_fraction")]
+    pub flow_stop_fraction: f32,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_stop_fraction() -> f32 {
+    0.005
+}
+
+/// The control loop.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlConfig {
+    /// Control cycles per second; must divide 1 000 000 (the period is whole microseconds).
+    pub rate_hz: u32,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        ControlConfig { rate_hz: 10_000 }
+    }
+}
+
+/// Supply pressure of an inlet: a value in kPa, or `auto`, the pressure that prints the
+/// configured bead at `print_speed_mm_s` with the channel full of this inlet's material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pressure {
+    /// Computed from the material, bead and print speed.
+    Auto,
+    /// kPa above ambient.
+    Kpa(f32),
+}
+
+impl Serialize for Pressure {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            match *self {
+                Pressure::Auto => s.serialize_str("auto"),
+                Pressure::Kpa(k) => s.serialize_f32(k),
+            }
+        } else {
+            // Compact forms: NaN never validates as a pressure, so it stands for `auto`.
+            match *self {
+                Pressure::Auto => s.serialize_f32(f32::NAN),
+                Pressure::Kpa(k) => s.serialize_f32(k),
+            }
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Pressure {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = Pressure;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a pressure in kPa or \"auto\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Pressure, E> {
+                if v == "auto" {
+                    Ok(Pressure::Auto)
+                } else {
+                    Err(E::invalid_value(serde::de::Unexpected::Str(v), &self))
+                }
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Pressure, E> {
+                Ok(Pressure::Kpa(v as f32))
+            }
+            fn visit_f32<E: serde::de::Error>(self, v: f32) -> Result<Pressure, E> {
+                if v.is_nan() {
+                    Ok(Pressure::Auto)
+                } else {
+                    Ok(Pressure::Kpa(v))
+                }
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Pressure, E> {
+                Ok(Pressure::Kpa(v as f32))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Pressure, E> {
+                Ok(Pressure::Kpa(v as f32))
+            }
+        }
+        if d.is_human_readable() {
+            d.deserialize_any(V)
+        } else {
+            d.deserialize_f32(V)
+        }
+    }
+}
+
+/// One inlet: its valve, line and material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InletConfig {
+    /// Material name, for people (at most 24 bytes).
+    pub material: heapless::String<MATERIAL_NAME_LEN>,
+    /// How the material flows.
+    pub rheology: Rheology,
+    /// Supply pressure, kPa, or "auto".
+    pub pressure_kpa: Pressure,
+    /// Time from the open command until the valve passes paste, ms.
+    #[serde(default)]
+    pub valve_open_delay_ms: f32,
+    /// Time from the close command until the valve shuts, ms.
+    #[serde(default)]
+    pub valve_close_delay_ms: f32,
+    /// First-order time constant of the line pressure rising after the valve opens, ms.
+    #[serde(default)]
+    pub pressure_rise_ms: f32,
+    /// First-order time constant of the line pressure decaying after the valve shuts, ms.
+    #[serde(default)]
+    pub pressure_decay_ms: f32,
+}
+
+/// Where in the config a problem is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Field {
+    /// Section: "channel", "motion", "control" or "inlet".
+    pub section: &'static str,
+    /// Inlet number or axis, where the key is per inlet or per axis.
+    pub index: Option<u8>,
+    /// The key.
+    pub key: &'static str,
+}
+
+/// What is wrong with a value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Problem {
+    /// NaN or infinite.
+    NotFinite,
+    /// Must be above zero.
+    NotPositive(f32),
+    /// Must be zero or more.
+    Negative(f32),
+    /// Outside the accepted range.
+    OutOfRange {
+        /// The value given.
+        got: f32,
+        /// Lowest accepted.
+        min: f32,
+        /// Highest accepted.
+        max: f32,
+    },
+    /// More inlets than this build supports.
+    TooManyInlets {
+        /// Inlets configured.
+        got: usize,
+        /// Inlets this build supports.
+        max: usize,
+    },
+    /// No inlet configured.
+    NoInlets,
+    /// `travel_min_mm` is not below `travel_max_mm`.
+    EmptyTravel,
+    /// The control rate does not give a whole number of microseconds.
+    RateNotDivisor(u32),
+    /// The fastest move would need more steps per second than the drivers take.
+    StepRate {
+        /// Steps/s the axis would need.
+        needed: f32,
+        /// Steps/s allowed, less one step per control cycle of rounding headroom.
+        allowed: f32,
+    },
+    /// The flow can push the head faster than the print-speed cap.
+    FlowTooFast {
+        /// Speed the flow can reach, mm/s.
+        speed: f32,
+        /// Inlet whose pressure reaches it.
+        inlet: u8,
+        /// Material filling the channel when it does.
+        through: u8,
+    },
+    /// A value that must not exceed another one does.
+    Above {
+        /// The value given.
+        got: f32,
+        /// The bound.
+        limit: f32,
+        /// What the bound is.
+        what: &'static str,
+    },
+    /// `auto` pressure could not be computed (flow law gives no finite value).
+    AutoPressure,
+}
+
+/// A config value that cannot print, naming the field and the reason.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConfigError {
+    /// Where.
+    pub field: Field,
+    /// What.
+    pub problem: Problem,
+}
+
+impl fmt::Display for Field {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (self.section, self.index) {
+            ("inlet", Some(i)) => write!(f, "inlet[{i}].{}", self.key),
+            (s, Some(i)) => write!(f, "{s}.{}[{i}]", self.key),
+            (s, None) => write!(f, "{s}.{}", self.key),
+        }
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: ", self.field)?;
+        match self.problem {
+            Problem::NotFinite => write!(f, "must be a finite number"),
+            Problem::NotPositive(v) => write!(f, "must be above zero (got {v})"),
+            Problem::Negative(v) => write!(f, "must not be negative (got {v})"),
+            Problem::OutOfRange { got, min, max } => {
+                write!(f, "{got} is outside the accepted range {min} ..= {max}")
+            }
+            Problem::TooManyInlets { got, max } => write!(
+                f,
+                "{got} inlets configured but this build supports at most {max}"
+            ),
+            Problem::NoInlets => write!(f, "at least one inlet is needed"),
+            Problem::EmptyTravel => write!(f, "travel_min_mm must be below travel_max_mm"),
+            Problem::RateNotDivisor(r) => write!(
+                f,
+                "{r} Hz does not give a whole number of microseconds per cycle (try 10000)"
+            ),
+            Problem::StepRate { needed, allowed } => write!(
+                f,
+                "needs {needed:.0} steps/s at top speed but the drivers allow {allowed:.0} \
+                 (max_step_rate_hz less one step per control cycle); lower the speed"
+            ),
+            Problem::FlowTooFast {
+                speed,
+                inlet,
+                through,
+            } => write!(
+                f,
+                "the flow can drive the head at {speed:.1} mm/s (inlet {inlet}'s pressure through a \
+                 channel full of inlet {through}'s material), above this cap; raise the cap or \
+                 lower that pressure"
+            ),
+            Problem::Above { got, limit, what } => {
+                write!(f, "{got} is above {what} ({limit})")
+            }
+            Problem::AutoPressure => write!(f, "\"auto\" pressure could not be computed"),
+        }
+    }
+}
+
+/// One validated inlet in the core's units (Pa, s, mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Inlet<R> {
+    /// Flow law of its material in this channel.
+    pub law: FlowLaw<R>,
+    /// Supply pressure, Pa.
+    pub supply_pa: R,
+    /// Valve open dead time, s.
+    pub open_delay_s: R,
+    /// Valve close dead time, s.
+    pub close_delay_s: R,
+    /// Rise time constant, s (0: instant).
+    pub rise_s: R,
+    /// Decay time constant, s (0: instant).
+    pub decay_s: R,
+}
+
+/// Validated motion limits in mm and s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion<R> {
+    /// Microsteps per mm.
+    pub steps_per_mm: [R; 3],
+    /// Lowest coordinate, mm.
+    pub min_mm: [R; 3],
+    /// Highest coordinate, mm.
+    pub max_mm: [R; 3],
+    /// Top speed, mm/s.
+    pub max_speed: [R; 3],
+    /// Top acceleration, mm/s^2.
+    pub max_accel: [R; 3],
+    /// Travel speed, mm/s.
+    pub travel_speed: R,
+    /// Whole steps one axis may take in one control cycle.
+    pub max_steps_per_cycle: u32,
+    /// Wait for flow decay before travel.
+    pub wait_for_flow_decay: bool,
+}
+
+/// A validated machine: everything the core needs, in mm, s, Pa, with derived constants.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Machine<R, const N: usize> {
+    /// Channel diameter, mm.
+    pub d_mm: R,
+    /// Shared channel volume `pi d^2 L_s / 4`.
+    pub v_channel: Vol,
+    /// Hanging filament volume `pi d^2 H / 4`.
+    pub v_hang: Vol,
+    /// Bead cross-section S, mm^2.
+    pub bead_area: R,
+    /// Inlets in valve order.
+    pub inlets: heapless::Vec<Inlet<R>, N>,
+    /// Motion limits.
+    pub motion: Motion<R>,
+    /// Control period, microseconds.
+    pub period_us: u32,
+    /// Fastest the flow can drive the head, mm/s (highest supply through the least
+    /// resistive channel content).
+    pub v_flow_max: R,
+    /// Corner radius: the one the XY acceleration limit allows at `v_flow_max`, mm.
+    pub corner_radius: R,
+    /// Flow counted as stopped, mm^3/s.
+    pub q_stop: R,
+}
+
+impl<R: Real, const N: usize> Machine<R, N> {
+    /// Channel plus hanging filament: the volume between the junction and the plate.
+    pub fn v_transit(&self) -> Vol {
+        self.v_channel + self.v_hang
+    }
+    /// Control period in seconds.
+    pub fn dt(&self) -> R {
+        R::of(self.period_us as f64 * 1e-6)
+    }
+    /// Number of inlets.
+    pub fn inlet_count(&self) -> usize {
+        self.inlets.len()
+    }
+}
+
+struct Check {
+    section: &'static str,
+    index: Option<u8>,
+}
+
+impl Check {
+    fn err(&self, key: &'static str, problem: Problem) -> ConfigError {
+        ConfigError {
+            field: Field {
+                section: self.section,
+                index: self.index,
+                key,
+            },
+            problem,
+        }
+    }
+    fn finite(&self, key: &'static str, v: f32) -> Result<f32, ConfigError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(key, Problem::NotFinite))
+        }
+    }
+    fn positive(&self, key: &'static str, v: f32) -> Result<f32, ConfigError> {
+        let v = self.finite(key, v)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(key, Problem::NotPositive(v)))
+        }
+    }
+    fn range(&self, key: &'static str, v: f32, min: f32, max: f32) -> Result<f32, ConfigError> {
+        let v = self.finite(key, v)?;
+        if v >= min && v <= max {
+            Ok(v)
+        } else if v < 0.0 && min >= 0.0 {
+            Err(self.err(key, Problem::Negative(v)))
+        } else {
+            Err(self.err(key, Problem::OutOfRange { got: v, min, max }))
+        }
+    }
+    fn positive_max(&self, key: &'static str, v: f32, max: f32) -> Result<f32, ConfigError> {
+        let v = self.positive(key, v)?;
+        if v <= max {
+            Ok(v)
+        } else {
+            Err(self.err(
+                key,
+                Problem::OutOfRange {
+                    got: v,
+                    min: 0.0,
+                    max,
+                },
+            ))
+        }
+    }
+}
+
+fn axis_check(section: &'static str, axis: usize) -> Check {
+    Check {
+        section,
+        index: Some(axis as u8),
+    }
+}
+
+/// Flow through a channel full of one material at pressure `p_pa`, mm^3/s (f64: used at
+/// validation time only).
+fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
+    let per_vol = p_pa / v_channel_mm3;
+    if per_vol <= law.b {
+        return 0.0;
+    }
+    libm::pow((per_vol - law.b) / law.a, 1.0 / law.n)
+}
+
+impl Config {
+    /// Validates this config for a build supporting `N` inlets and converts it to the
+    /// core's units. Every problem names its field.
+    pub fn validate<R: Real, const N: usize>(&self) -> Result<Machine<R, N>, ConfigError> {
+        let ch = Check {
+            section: "channel",
+            index: None,
+        };
+        let c = &self.channel;
+        let d = ch.positive_max("nozzle_diameter_mm", c.nozzle_diameter_mm, 20.0)? as f64;
+        let ls = ch.positive_max("channel_length_mm", c.channel_length_mm, 500.0)? as f64;
+        let h_noz = ch.range("nozzle_height_mm", c.nozzle_height_mm, 0.0, 50.0)? as f64;
+        let h_layer = ch.positive_max("layer_height_mm", c.layer_height_mm, 20.0)? as f64;
+        let pitch = ch.positive_max("line_pitch_mm", c.line_pitch_mm, 50.0)? as f64;
+        let s = match c.bead_area_mm2 {
+            Some(a) => ch.positive_max("bead_area_mm2", a, 1000.0)? as f64,
+            None => pitch * h_layer,
+        };
+        let area = core::f64::consts::PI * d * d / 4.0;
+        let v_channel = area * ls;
+        let v_hang = area * (h_noz - h_layer).max(0.0);
+
+        let mc = Check {
+            section: "motion",
+            index: None,
+        };
+        let m = &self.motion;
+        let mut steps_per_mm = [R::ZERO; 3];
+        let mut min_mm = [R::ZERO; 3];
+        let mut max_mm = [R::ZERO; 3];
+        let mut max_speed = [R::ZERO; 3];
+        let mut max_accel = [R::ZERO; 3];
+        let step_rate = mc.positive_max("max_step_rate_hz", m.max_step_rate_hz, 5.0e6)? as f64;
+
+        let cc = Check {
+            section: "control",
+            index: None,
+        };
+        let rate = self.control.rate_hz;
+        if !(100..=100_000).contains(&rate) {
+            return Err(cc.err(
+                "rate_hz",
+                Problem::OutOfRange {
+                    got: rate as f32,
+                    min: 100.0,
+                    max: 100_000.0,
+                },
+            ));
+        }
+        if 1_000_000 % rate != 0 {
+            return Err(cc.err("rate_hz", Problem::RateNotDivisor(rate)));
+        }
+        let period_us = 1_000_000 / rate;
+        let allowed_rate = step_rate - rate as f64;
+        let max_steps_per_cycle = (step_rate / rate as f64) as u32;
+        if max_steps_per_cycle < 1 || allowed_rate <= 0.0 {
+            return Err(mc.err(
+                "max_step_rate_hz",
+                Problem::Above {
+                    got: rate as f32,
+                    limit: step_rate as f32,
+                    what: "the step rate (control.rate_hz must not exceed it)",
+                },
+            ));
+        }
+        for a in 0..3 {
+            let spm =
+                axis_check("motion", a).positive_max("steps_per_mm", m.steps_per_mm[a], 1.0e5)?;
+            let lo = axis_check("motion", a).range("travel_min_mm", m.travel_min_mm[a], -1e4, 1e4)?;
+            let hi = axis_check("motion", a).range("travel_max_mm", m.travel_max_mm[a], -1e4, 1e4)?;
+            if lo >= hi {
+                return Err(axis_check("motion", a).err("travel_max_mm", Problem::EmptyTravel));
+            }
+            let vmax =
+                axis_check("motion", a).positive_max("max_speed_mm_s", m.max_speed_mm_s[a], 5e3)?;
+            let amax =
+                axis_check("motion", a).positive_max("max_accel_mm_s2", m.max_accel_mm_s2[a], 1e6)?;
+            let needed = vmax as f64 * spm as f64;
+            if needed > allowed_rate {
+                return Err(axis_check("motion", a).err(
+                    "max_speed_mm_s",
+                    Problem::StepRate {
+                        needed: needed as f32,
+                        allowed: allowed_rate as f32,
+                    },
+                ));
+            }
+            steps_per_mm[a] = R::of(spm as f64);
+            min_mm[a] = R::of(lo as f64);
+            max_mm[a] = R::of(hi as f64);
+            max_speed[a] = R::of(vmax as f64);
+            max_accel[a] = R::of(amax as f64);
+        }
+        let v_xy_max = m.max_speed_mm_s[0].min(m.max_speed_mm_s[1]);
+        let print_speed = mc.positive("print_speed_mm_s", m.print_speed_mm_s)? as f64;
+        let cap = mc.positive("print_speed_max_mm_s", m.print_speed_max_mm_s)?;
+        if cap > v_xy_max {
+            return Err(mc.err(
+                "print_speed_max_mm_s",
+                Problem::Above {
+                    got: cap,
+                    limit: v_xy_max,
+                    what: "the X/Y max_speed_mm_s",
+                },
+            ));
+        }
+        if print_speed > cap as f64 {
+            return Err(mc.err(
+                "print_speed_mm_s",
+                Problem::Above {
+                    got: print_speed as f32,
+                    limit: cap,
+                    what: "print_speed_max_mm_s",
+                },
+            ));
+        }
+        let travel = mc.positive("travel_speed_mm_s", m.travel_speed_mm_s)?;
+        let stop_fraction = mc.range("flow_stop_fraction", m.flow_stop_fraction, 1e-5, 0.5)?;
+
+        // Inlets.
+        if self.inlets.is_empty() {
+            return Err(Check {
+                section: "inlet",
+                index: None,
+            }
+            .err("material", Problem::NoInlets));
+        }
+        if self.inlets.len() > N {
+            return Err(Check {
+                section: "inlet",
+                index: None,
+            }
+            .err(
+                "material",
+                Problem::TooManyInlets {
+                    got: self.inlets.len(),
+                    max: N,
+                },
+            ));
+        }
+        let mut laws: heapless::Vec<FlowLaw<f64>, N> = heapless::Vec::new();
+        for (i, inlet) in self.inlets.iter().enumerate() {
+            let ic = Check {
+                section: "inlet",
+                index: Some(i as u8),
+            };
+            match inlet.rheology {
+                Rheology::Newtonian { viscosity_pa_s } => {
+                    ic.positive_max("rheology.newtonian.viscosity_pa_s", viscosity_pa_s, 1e7)?;
+                }
+                Rheology::PowerLaw {
+                    consistency_pa_sn,
+                    flow_index,
+                } => {
+                    ic.positive_max("rheology.power_law.consistency_pa_sn", consistency_pa_sn, 1e7)?;
+                    ic.range("rheology.power_law.flow_index", flow_index, 0.1, 1.0)?;
+                }
+                Rheology::HerschelBulkley {
+                    yield_stress_pa,
+                    consistency_pa_sn,
+                    flow_index,
+                } => {
+                    ic.range(
+                        "rheology.herschel_bulkley.yield_stress_pa",
+                        yield_stress_pa,
+                        0.0,
+                        1e6,
+                    )?;
+                    ic.positive_max(
+                        "rheology.herschel_bulkley.consistency_pa_sn",
+                        consistency_pa_sn,
+                        1e7,
+                    )?;
+                    ic.range("rheology.herschel_bulkley.flow_index", flow_index, 0.1, 1.0)?;
+                }
+            }
+            // Capacity N was checked above, so this push cannot fail.
+            let _ = laws.push(FlowLaw::new(&inlet.rheology, d));
+        }
+        let mut inlets: heapless::Vec<Inlet<R>, N> = heapless::Vec::new();
+        let mut supplies: heapless::Vec<f64, N> = heapless::Vec::new();
+        for (i, inlet) in self.inlets.iter().enumerate() {
+            let ic = Check {
+                section: "inlet",
+                index: Some(i as u8),
+            };
+            let law = &laws[i];
+            let supply_pa = match inlet.pressure_kpa {
+                Pressure::Kpa(k) => ic.positive_max("pressure_kpa", k, 2000.0)? as f64 * 1e3,
+                Pressure::Auto => {
+                    let q = print_speed * s;
+                    let p = v_channel * (law.a * libm::pow(q, law.n) + law.b);
+                    if !(p.is_finite() && p > 0.0) {
+                        return Err(ic.err("pressure_kpa", Problem::AutoPressure));
+                    }
+                    if p > 2.0e6 {
+                        return Err(ic.err(
+                            "pressure_kpa",
+                            Problem::Above {
+                                got: (p / 1e3) as f32,
+                                limit: 2000.0,
+                                what: "the 2000 kPa the core accepts (\"auto\" for this material and speed)",
+                            },
+                        ));
+                    }
+                    p
+                }
+            };
+            let open = ic.range("valve_open_delay_ms", inlet.valve_open_delay_ms, 0.0, 2000.0)?;
+            let close = ic.range("valve_close_delay_ms", inlet.valve_close_delay_ms, 0.0, 2000.0)?;
+            let rise = ic.range("pressure_rise_ms", inlet.pressure_rise_ms, 0.0, 5000.0)?;
+            let decay = ic.range("pressure_decay_ms", inlet.pressure_decay_ms, 0.0, 5000.0)?;
+            let _ = supplies.push(supply_pa);
+            let _ = inlets.push(Inlet {
+                law: FlowLaw::new(&inlet.rheology, d),
+                supply_pa: R::of(supply_pa),
+                open_delay_s: R::of(open as f64 * 1e-3),
+                close_delay_s: R::of(close as f64 * 1e-3),
+                rise_s: R::of(rise as f64 * 1e-3),
+                decay_s: R::of(decay as f64 * 1e-3),
+            });
+        }
+        // The junction never exceeds the highest supply and the channel never resists less
+        // than when full of its least resistive material, so this bounds the head speed.
+        let mut v_flow_max = 0.0f64;
+        let mut worst = (0u8, 0u8);
+        for (i, &p) in supplies.iter().enumerate() {
+            for (j, law) in laws.iter().enumerate() {
+                let v = flow_full(law, p, v_channel) / s;
+                if v > v_flow_max {
+                    v_flow_max = v;
+                    worst = (i as u8, j as u8);
+                }
+            }
+        }
+        if v_flow_max > cap as f64 * 1.000_001 {
+            return Err(mc.err(
+                "print_speed_max_mm_s",
+                Problem::FlowTooFast {
+                    speed: v_flow_max as f32,
+                    inlet: worst.0,
+                    through: worst.1,
+                },
+            ));
+        }
+        let a_xy = m.max_accel_mm_s2[0].min(m.max_accel_mm_s2[1]) as f64;
+        let corner_radius = v_flow_max * v_flow_max / a_xy;
+        Ok(Machine {
+            d_mm: R::of(d),
+            v_channel: Vol::from_mm3(v_channel),
+            v_hang: Vol::from_mm3(v_hang),
+            bead_area: R::of(s),
+            inlets,
+            motion: Motion {
+                steps_per_mm,
+                min_mm,
+                max_mm,
+                max_speed,
+                max_accel,
+                travel_speed: R::of(travel.min(m.max_speed_mm_s[0]) as f64),
+                max_steps_per_cycle,
+                wait_for_flow_decay: m.wait_for_flow_decay,
+            },
+            period_us,
+            v_flow_max: R::of(v_flow_max),
+            corner_radius: R::of(corner_radius),
+            q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn seed() -> Config {
+        let mut inlets = heapless::Vec::new();
+        for (name, mu) in [("paste A", 1.41f32), ("paste B", 3.17)] {
+            inlets
+                .push(InletConfig {
+                    material: heapless::String::try_from(name).unwrap(),
+                    rheology: Rheology::Newtonian { viscosity_pa_s: mu },
+                    pressure_kpa: Pressure::Auto,
+                    valve_open_delay_ms: 0.0,
+                    valve_close_delay_ms: 0.0,
+                    pressure_rise_ms: 0.0,
+                    pressure_decay_ms: 0.0,
+                })
+                .unwrap();
+        }
+        Config {
+            channel: ChannelConfig {
+                nozzle_diameter_mm: 0.8,
+                channel_length_mm: 2.4,
+                nozzle_height_mm: 0.8,
+                layer_height_mm: 0.6,
+                line_pitch_mm: 0.8,
+                bead_area_mm2: None,
+            },
+            motion: MotionConfig {
+                steps_per_mm: [80.0, 80.0, 400.0],
+                travel_min_mm: [0.0; 3],
+                travel_max_mm: [200.0, 200.0, 100.0],
+                max_speed_mm_s: [150.0, 150.0, 20.0],
+                max_accel_mm_s2: [2000.0, 2000.0, 200.0],
+                print_speed_mm_s: 10.0,
+                print_speed_max_mm_s: 40.0,
+                travel_speed_mm_s: 80.0,
+                max_step_rate_hz: 50_000.0,
+                wait_for_flow_decay: true,
+                flow_stop_fraction: 0.005,
+            },
+            control: ControlConfig::default(),
+            inlets,
+        }
+    }
+
+    #[test]
+    fn seed_validates_and_auto_pressure_prints_the_target_speed() {
+        let m: Machine<f64, 4> = seed().validate().unwrap();
+        // Channel full of paste A at its auto pressure: v = P / (a V_s) / S = 10 mm/s.
+        let law = &m.inlets[0].law;
+        let q = m.inlets[0].supply_pa / (law.a * m.v_channel.mm3::<f64>());
+        assert!((q / m.bead_area - 10.0).abs() < 1e-4, "{}", q / m.bead_area);
+        // B's higher pressure through a channel full of A: 10 * 3.17 / 1.41.
+        assert!((m.v_flow_max - 10.0 * 3.17 / 1.41).abs() < 1e-3);
+    }
+
+    #[test]
+    fn each_bad_value_names_its_field() {
+        let cases: [(fn(&mut Config), &str); 8] = [
+            (|c| c.channel.nozzle_diameter_mm = 0.0, "channel.nozzle_diameter_mm"),
+            (|c| c.channel.channel_length_mm = f32::NAN, "channel.channel_length_mm"),
+            (|c| c.inlets[1].pressure_kpa = Pressure::Kpa(-3.0), "inlet[1].pressure_kpa"),
+            (
+                |c| c.motion.travel_max_mm[2] = -1.0,
+                "motion.travel_max_mm[2]",
+            ),
+            (|c| c.motion.print_speed_max_mm_s = 5.0, "motion.print_speed_mm_s"),
+            (|c| c.control.rate_hz = 7000, "control.rate_hz"),
+            (|c| c.inlets[0].valve_open_delay_ms = -1.0, "inlet[0].valve_open_delay_ms"),
+            (
+                |c| c.motion.max_speed_mm_s[0] = 1000.0,
+                "motion.max_speed_mm_s[0]",
+            ),
+        ];
+        for (edit, field) in cases {
+            let mut c = seed();
+            edit(&mut c);
+            let e = c.validate::<f32, 4>().unwrap_err();
+            let text = std::format!("{e}");
+            assert!(text.starts_with(field), "{text} should name {field}");
+        }
+    }
+
+    #[test]
+    fn more_inlets_than_the_build_supports_are_refused() {
+        let c = seed();
+        let e = c.validate::<f32, 1>().unwrap_err();
+        assert_eq!(
+            e.problem,
+            Problem::TooManyInlets { got: 2, max: 1 }
+        );
+    }
+
+    #[test]
+    fn a_pressure_that_outruns_the_cap_is_refused() {
+        let mut c = seed();
+        c.inlets[1].pressure_kpa = Pressure::Kpa(50.0);
+        let e = c.validate::<f32, 4>().unwrap_err();
+        assert!(matches!(e.problem, Problem::FlowTooFast { inlet: 1, through: 0, .. }), "{e}");
+    }
+}

@@ -1,0 +1,1086 @@
+//! The executor: one control cycle per `tick(now, outputs)`. Volume is the clock: while a
+//! bead is printed the head advances along the path by exactly the volume the flow model
+//! says left the nozzle (divided by the bead section), and the valves follow a cursor that
+//! runs ahead of the head by the channel and hanging-filament volume plus the predicted
+//! volume that flows while a valve change takes effect. Every fault goes through one
+//! `safe_state`. Job intake beyond `push`, and pins, belong to the caller.
+
+use crate::command::{Command, CommandError, MAX_DWELL_MS, MAX_SEGMENT_UM};
+use crate::config::Machine;
+use crate::flow_model::channel::ChannelFull;
+use crate::flow_model::predict::{Goal, Outcome, Prediction};
+use crate::flow_model::FlowModel;
+use crate::motion::{fillet, Fillet, Trapezoid, V2};
+use crate::outputs::{Axis, Outputs};
+use crate::real::Real;
+use crate::step_gen::StepGen;
+use crate::vol::Vol;
+use heapless::Deque;
+use serde::{Deserialize, Serialize};
+
+/// Planned items (finalised print segments, travels, dwells, end) the executor holds
+/// ahead of the head. The valve cursor needs the path up to (channel + filament volume +
+/// switch lead) / bead section ahead, about 4 mm on the seed printhead: 20 segments of
+/// 0.2 mm. 256 leaves room for finer beads and keeps RAM use on the STM32 near 20 KiB.
+pub const PLAN_CAPACITY: usize = 256;
+/// Material boundaries held ahead of the valve cursor (at most one per planned item).
+pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
+/// Cycles a late `tick` may catch up at once before it is a fault.
+pub const MAX_CATCH_UP: u64 = 4;
+/// Prediction chunks integrated per cycle and per prediction in flight.
+pub const PREDICT_BUDGET: u32 = 4;
+
+/// Why the executor went to the safe state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Fault {
+    /// A planned position lies outside the axis's travel limits.
+    Limit {
+        /// The axis.
+        axis: Axis,
+    },
+    /// A cycle needed more steps than the drivers' maximum rate allows.
+    StepRate {
+        /// The axis.
+        axis: Axis,
+        /// Steps the cycle needed.
+        steps: u32,
+        /// Steps a cycle may have.
+        max: u32,
+    },
+    /// The job queue ran dry while paste was flowing.
+    Underrun,
+    /// The job needs more look-ahead than `PLAN_CAPACITY` items give (features too fine
+    /// for the bead section).
+    LookaheadFull,
+    /// A command that cannot be executed.
+    InvalidCommand(CommandError),
+    /// More material changes in flight than the channel model holds.
+    ChannelFull,
+    /// The flow did not die out after the valves closed.
+    FlowDidNotStop,
+    /// `tick` came more than `MAX_CATCH_UP` periods late.
+    Late {
+        /// Periods since the previous tick.
+        periods: u64,
+    },
+    /// Emergency stop input.
+    EStop,
+    /// Watchdog expiry.
+    Watchdog,
+    /// Host link lost while printing (and the config says stop).
+    LinkLost,
+    /// A job command arrived with no job begun.
+    NotReady,
+}
+
+impl core::fmt::Display for Fault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Fault::Limit { axis } => write!(f, "{axis:?} would leave its travel limits"),
+            Fault::StepRate { axis, steps, max } => write!(
+                f,
+                "{axis:?} needed {steps} steps in one cycle, more than the {max} allowed"
+            ),
+            Fault::Underrun => write!(f, "job queue ran dry while printing"),
+            Fault::LookaheadFull => write!(
+                f,
+                "job needs more look-ahead than the executor holds (features too fine)"
+            ),
+            Fault::InvalidCommand(e) => write!(f, "invalid command: {e}"),
+            Fault::ChannelFull => write!(f, "too many material changes in the channel at once"),
+            Fault::FlowDidNotStop => write!(f, "flow did not stop after the valves closed"),
+            Fault::Late { periods } => write!(f, "control cycle {periods} periods late"),
+            Fault::EStop => write!(f, "emergency stop"),
+            Fault::Watchdog => write!(f, "watchdog expired"),
+            Fault::LinkLost => write!(f, "host link lost while printing"),
+            Fault::NotReady => write!(f, "command before a job was begun"),
+        }
+    }
+}
+
+impl From<ChannelFull> for Fault {
+    fn from(_: ChannelFull) -> Self {
+        Fault::ChannelFull
+    }
+}
+
+/// What the executor is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RunState {
+    /// No job.
+    Idle,
+    /// Laying a bead.
+    Printing,
+    /// Waiting at a bead's end for the flow to die out.
+    Settling,
+    /// Travel or layer move, valves closed.
+    Travelling,
+    /// Dwell.
+    Dwelling,
+    /// Paused between beads.
+    Paused,
+    /// Job finished.
+    Done,
+    /// Job aborted on request.
+    Aborted,
+    /// Stopped by a fault.
+    Faulted,
+}
+
+/// Why `push` did not take a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PushError {
+    /// No room now; push again after a few ticks.
+    Full,
+    /// The command is invalid; the executor will go to the safe state on the next tick.
+    Rejected(Fault),
+}
+
+/// The state after a cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Report<R> {
+    /// Run state.
+    pub state: RunState,
+    /// Planned head position, mm.
+    pub position: [R; 3],
+    /// Commanded step position per axis.
+    pub steps: [i64; 3],
+    /// Valves commanded open, bit per inlet.
+    pub valves: u32,
+    /// Inlet feeding the channel (model), if anything flows.
+    pub feeding: Option<u8>,
+    /// Material landing on the plate (model).
+    pub landing: u8,
+    /// Mean flow over the cycle, mm^3/s.
+    pub q: R,
+    /// Volume that left the nozzle this cycle.
+    pub dv: Vol,
+    /// Head speed along the print path this cycle, mm/s (0 off the path).
+    pub speed: R,
+    /// Head position along the concatenated print paths, as volume.
+    pub plan_volume: Vol,
+    /// Index (0-based, in push order) of the command being executed.
+    pub command_index: u32,
+    /// Volume that left the nozzle off the print path so far (between beads).
+    pub lost_volume: Vol,
+    /// Cycles run since the job began.
+    pub cycle: u64,
+}
+
+/// A finalised print segment: the straight part, then the fillet into the next segment.
+#[derive(Clone, Copy, Debug)]
+struct Seg<R> {
+    material: u8,
+    start: V2<R>,
+    dir: V2<R>,
+    len: R,
+    fillet: Option<Fillet<R>>,
+    u_start: Vol,
+    u_arc: Vol,
+    u_end: Vol,
+    last: bool,
+    index: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Item<R> {
+    Seg(Seg<R>),
+    Travel { to: [R; 3], index: u32 },
+    Dwell { cycles: u64, index: u32 },
+    End { index: u32 },
+}
+
+/// The newest print segment, not final until the next command shows how it ends.
+#[derive(Clone, Copy, Debug)]
+struct Open<R> {
+    material: u8,
+    from: V2<R>,
+    to: V2<R>,
+    dir: V2<R>,
+    length: R,
+    /// Tangent length taken at the start by the previous segment's fillet.
+    t_start: R,
+    u_start: Vol,
+    index: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Phase<R> {
+    Idle,
+    Print { stopping: bool },
+    Settle { cycles: u64 },
+    Travel { from: [R; 3], dir: [R; 3], trap: Trapezoid<R>, cycles: u64 },
+    Dwell { left: u64 },
+    Paused,
+    Done,
+    Aborted,
+    Faulted(Fault),
+}
+
+/// Tracks predictions of one kind and extrapolates their answer to the present.
+#[derive(Clone, Debug)]
+struct Tracker<R, const N: usize> {
+    goal: Option<Goal>,
+    running: Option<Prediction<R, N>>,
+    last: Option<(u64, R)>,
+    prev: Option<(u64, R)>,
+}
+
+impl<R: Real, const N: usize> Tracker<R, N> {
+    fn new() -> Self {
+        Tracker {
+            goal: None,
+            running: None,
+            last: None,
+            prev: None,
+        }
+    }
+    fn reset(&mut self) {
+        *self = Self::new();
+    }
+    /// Keeps a prediction of `goal` running; returns the current estimate, if any.
+    fn estimate(&mut self, model: &FlowModel<R, N>, goal: Goal) -> Option<R> {
+        if self.goal != Some(goal) {
+            self.reset();
+            self.goal = Some(goal);
+        }
+        let running = self
+            .running
+            .get_or_insert_with(|| Prediction::start(model, goal));
+        if let Some(outcome) = running.advance(model, PREDICT_BUDGET) {
+            let at = running.start_cycle();
+            self.running = Some(Prediction::start(model, goal));
+            match outcome {
+                Outcome::Volume(v) => {
+                    self.prev = self.last;
+                    self.last = Some((at, v));
+                }
+                Outcome::Never => {
+                    self.prev = None;
+                    self.last = None;
+                }
+            }
+        }
+        let now = model.next_cycle();
+        match (self.last, self.prev) {
+            (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
+                let slope = (v1 - v0) / R::of((t1 - t0) as f64);
+                Some((v1 + slope * R::of((now - t1) as f64)).max(R::ZERO))
+            }
+            (Some((_, v1)), _) => Some(v1),
+            _ => None,
+        }
+    }
+}
+
+/// The volume-clocked executor for a machine with up to `N` inlets, computing in `R`.
+pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
+    machine: Machine<R, N>,
+    model: FlowModel<R, N>,
+    steps: StepGen<R>,
+    plan: Deque<Item<R>, PLAN_CAPACITY>,
+    boundaries: Deque<(Vol, u8), BOUNDARY_CAPACITY>,
+    open: Option<Open<R>>,
+    /// Material and plan volume at the end of the last finalised print segment.
+    last_final: Option<(u8, Vol)>,
+    /// Where the plan is known to, as print volume; None once the job's end is queued.
+    known_to: Option<Vol>,
+    design_um: [i32; 3],
+    commands: u32,
+    ended: bool,
+    begun: bool,
+    phase: Phase<R>,
+    head: Vol,
+    head_pos: [R; 3],
+    entry_material: u8,
+    want: Option<u8>,
+    switch: Tracker<R, N>,
+    stop: Tracker<R, N>,
+    window: Vol,
+    lost: Vol,
+    last_now: Option<u64>,
+    cycle: u64,
+    drivers_on: bool,
+    valves_out: u32,
+    pause_requested: bool,
+    pending_fault: Option<Fault>,
+    last_dv: Vol,
+    last_q: R,
+    last_index: u32,
+}
+
+impl<R: Real, const N: usize> Executor<R, N> {
+    /// An idle executor for `machine`.
+    pub fn new(machine: Machine<R, N>) -> Self {
+        let model = FlowModel::new(&machine, 0);
+        let steps = StepGen::new(
+            machine.motion.steps_per_mm,
+            machine.motion.max_steps_per_cycle,
+            [0; 3],
+        );
+        let window = lead_window(&machine);
+        Executor {
+            model,
+            steps,
+            plan: Deque::new(),
+            boundaries: Deque::new(),
+            open: None,
+            last_final: None,
+            known_to: Some(Vol::ZERO),
+            design_um: [0; 3],
+            commands: 0,
+            ended: false,
+            begun: false,
+            phase: Phase::Idle,
+            head: Vol::ZERO,
+            head_pos: [R::ZERO; 3],
+            entry_material: 0,
+            want: None,
+            switch: Tracker::new(),
+            stop: Tracker::new(),
+            window,
+            lost: Vol::ZERO,
+            last_now: None,
+            cycle: 0,
+            drivers_on: false,
+            valves_out: 0,
+            pause_requested: false,
+            pending_fault: None,
+            last_dv: Vol::ZERO,
+            last_q: R::ZERO,
+            last_index: 0,
+            machine,
+        }
+    }
+
+    /// The machine this executor runs.
+    pub fn machine(&self) -> &Machine<R, N> {
+        &self.machine
+    }
+    /// The flow model (read-only).
+    pub fn model(&self) -> &FlowModel<R, N> {
+        &self.model
+    }
+    /// Current run state.
+    pub fn state(&self) -> RunState {
+        match self.phase {
+            Phase::Idle => RunState::Idle,
+            Phase::Print { .. } => RunState::Printing,
+            Phase::Settle { .. } => RunState::Settling,
+            Phase::Travel { .. } => RunState::Travelling,
+            Phase::Dwell { .. } => RunState::Dwelling,
+            Phase::Paused => RunState::Paused,
+            Phase::Done => RunState::Done,
+            Phase::Aborted => RunState::Aborted,
+            Phase::Faulted(_) => RunState::Faulted,
+        }
+    }
+    /// The fault that stopped the executor, if any.
+    pub fn fault_cause(&self) -> Option<Fault> {
+        match self.phase {
+            Phase::Faulted(f) => Some(f),
+            _ => self.pending_fault,
+        }
+    }
+
+    /// Begins a job with the head at `head_um` (micrometres) and the channel and filament
+    /// full of `initial_material` (primed). The job's commands follow through `push`.
+    pub fn begin(&mut self, head_um: [i32; 3], initial_material: u8) -> Result<(), Fault> {
+        if matches!(self.phase, Phase::Faulted(_)) {
+            return Err(self.fault_cause().unwrap_or(Fault::NotReady));
+        }
+        if initial_material as usize >= self.machine.inlet_count() {
+            return Err(Fault::InvalidCommand(CommandError::NoSuchInlet {
+                material: initial_material,
+                inlets: self.machine.inlet_count() as u8,
+            }));
+        }
+        let mut pos = [R::ZERO; 3];
+        for (a, p) in pos.iter_mut().enumerate() {
+            *p = um(head_um[a]);
+        }
+        self.check_limits(pos)?;
+        self.model = FlowModel::new(&self.machine, initial_material);
+        self.steps = StepGen::new(
+            self.machine.motion.steps_per_mm,
+            self.machine.motion.max_steps_per_cycle,
+            self.steps.target(pos),
+        );
+        self.plan.clear();
+        self.boundaries.clear();
+        self.open = None;
+        self.last_final = Some((initial_material, Vol::ZERO));
+        self.known_to = Some(Vol::ZERO);
+        self.design_um = head_um;
+        self.commands = 0;
+        self.ended = false;
+        self.begun = true;
+        self.phase = Phase::Idle;
+        self.head = Vol::ZERO;
+        self.head_pos = pos;
+        self.entry_material = initial_material;
+        self.want = None;
+        self.switch.reset();
+        self.stop.reset();
+        self.lost = Vol::ZERO;
+        self.cycle = 0;
+        self.pause_requested = false;
+        self.pending_fault = None;
+        self.last_index = 0;
+        Ok(())
+    }
+
+    /// Free places in the plan queue. A feeder keeps it topped up while a job runs.
+    pub fn room(&self) -> usize {
+        // One place is kept for the segment that `open` will become.
+        (PLAN_CAPACITY - self.plan.len()).saturating_sub(1)
+    }
+
+    /// Queues the next job command. Invalid commands are refused and latch a fault that
+    /// the next `tick` acts on through the safe state.
+    pub fn push(&mut self, cmd: Command) -> Result<(), PushError> {
+        if !self.begun {
+            return Err(PushError::Rejected(Fault::NotReady));
+        }
+        if let Some(f) = self.fault_cause() {
+            return Err(PushError::Rejected(f));
+        }
+        if self.room() == 0 || self.boundaries.is_full() {
+            return Err(PushError::Full);
+        }
+        match self.plan_command(cmd) {
+            Ok(()) => {
+                self.commands = self.commands.wrapping_add(1);
+                Ok(())
+            }
+            Err(f) => {
+                self.pending_fault = Some(f);
+                Err(PushError::Rejected(f))
+            }
+        }
+    }
+
+    /// Finish the current bead (valves closed at its end), then hold until `resume`.
+    pub fn pause(&mut self) {
+        self.pause_requested = true;
+    }
+    /// Continue after a pause.
+    pub fn resume(&mut self) {
+        self.pause_requested = false;
+        if matches!(self.phase, Phase::Paused) {
+            self.phase = Phase::Idle;
+        }
+    }
+    /// Stops now: valves closed, motion stopped, drivers off.
+    pub fn abort(&mut self, out: &mut impl Outputs) {
+        self.safe_outputs(out);
+        if !matches!(self.phase, Phase::Faulted(_)) {
+            self.phase = Phase::Aborted;
+        }
+    }
+    /// An outside fault (e-stop, watchdog, link loss): straight to the safe state.
+    pub fn fault(&mut self, fault: Fault, out: &mut impl Outputs) {
+        self.safe_state(fault, out);
+    }
+
+    /// The one path to the safe state: all valves closed, motion stopped, drivers off.
+    fn safe_state(&mut self, fault: Fault, out: &mut impl Outputs) {
+        self.safe_outputs(out);
+        self.phase = Phase::Faulted(fault);
+        self.pending_fault = None;
+    }
+
+    fn safe_outputs(&mut self, out: &mut impl Outputs) {
+        for i in 0..self.machine.inlet_count() {
+            out.valve(i as u8, false);
+        }
+        self.valves_out = 0;
+        self.model.command(0);
+        self.want = None;
+        out.drivers(false);
+        self.drivers_on = false;
+    }
+
+    /// One control cycle at time `now_us`. One call per period; a call less than half a
+    /// period after the previous one is ignored, a late one catches up to `MAX_CATCH_UP`
+    /// cycles.
+    pub fn tick(&mut self, now_us: u64, out: &mut impl Outputs) -> Result<Report<R>, Fault> {
+        if let Phase::Faulted(f) = self.phase {
+            // Hold the safe state whatever happened since.
+            if self.valves_out != 0 || self.drivers_on {
+                self.safe_outputs(out);
+            }
+            return Err(f);
+        }
+        if let Some(f) = self.pending_fault.take() {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        let period = self.machine.period_us as u64;
+        let cycles = match self.last_now {
+            None => 1,
+            Some(prev) => {
+                let el = now_us.saturating_sub(prev);
+                if el * 2 < period {
+                    return Ok(self.report());
+                }
+                (el + period / 2) / period
+            }
+        };
+        if cycles > MAX_CATCH_UP {
+            let f = Fault::Late { periods: cycles };
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        self.last_now = Some(now_us);
+        if !self.drivers_on && self.begun {
+            out.drivers(true);
+            self.drivers_on = true;
+        }
+        let mut total_dv = Vol::ZERO;
+        for _ in 0..cycles {
+            match self.cycle_once() {
+                Ok(dv) => total_dv += dv,
+                Err(f) => {
+                    self.safe_state(f, out);
+                    return Err(f);
+                }
+            }
+        }
+        self.last_dv = total_dv;
+        // Steps for where the head now is.
+        if let Err(e) = self.steps.move_over(self.head_pos, cycles as u32, out) {
+            let f = Fault::StepRate {
+                axis: e.axis,
+                steps: e.steps,
+                max: e.max,
+            };
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        // Valves as decided.
+        let mask = self.model.commanded();
+        if mask != self.valves_out {
+            for i in 0..self.machine.inlet_count() {
+                let bit = 1u32 << i;
+                if (mask ^ self.valves_out) & bit != 0 {
+                    out.valve(i as u8, mask & bit != 0);
+                }
+            }
+            self.valves_out = mask;
+        }
+        Ok(self.report())
+    }
+
+    fn report(&self) -> Report<R> {
+        let dt = self.machine.dt();
+        let speed = if matches!(self.phase, Phase::Print { .. }) {
+            self.last_dv.mm3::<R>() / (self.machine.bead_area * dt)
+        } else {
+            R::ZERO
+        };
+        Report {
+            state: self.state(),
+            position: self.head_pos,
+            steps: self.steps.position(),
+            valves: self.valves_out,
+            feeding: self.model.feeding(),
+            landing: self.model.channel().landing(),
+            q: self.last_q,
+            dv: self.last_dv,
+            speed,
+            plan_volume: self.head,
+            command_index: self.last_index,
+            lost_volume: self.lost,
+            cycle: self.cycle,
+        }
+    }
+
+    /// Model, head and valve decisions for one cycle. Returns the volume extruded.
+    fn cycle_once(&mut self) -> Result<Vol, Fault> {
+        self.cycle += 1;
+        let flow = self.model.step()?;
+        self.last_q = flow.q;
+        let dv = flow.dv;
+        // Phases may hand over to the next within a cycle (end of bead -> travel ...);
+        // each hand-over consumes a plan item, so this is bounded by the plan's length.
+        let mut dv_left = dv;
+        for _ in 0..=PLAN_CAPACITY {
+            match self.phase {
+                Phase::Print { stopping } => {
+                    self.head += dv_left;
+                    dv_left = Vol::ZERO;
+                    if !self.follow_path(stopping, flow.q)? {
+                        break;
+                    }
+                }
+                Phase::Settle { cycles } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    let settled = !self.machine.motion.wait_for_flow_decay
+                        || (flow.q <= self.machine.q_stop && self.model.commanded() == 0);
+                    if settled {
+                        self.phase = Phase::Idle;
+                        continue;
+                    }
+                    if cycles > self.settle_limit() {
+                        return Err(Fault::FlowDidNotStop);
+                    }
+                    self.phase = Phase::Settle { cycles: cycles + 1 };
+                    break;
+                }
+                Phase::Travel {
+                    from,
+                    dir,
+                    trap,
+                    cycles,
+                } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    let t = self.machine.dt() * R::of((cycles + 1) as f64);
+                    let d = trap.distance(t);
+                    for a in 0..3 {
+                        self.head_pos[a] = from[a] + dir[a] * d;
+                    }
+                    if t >= trap.duration() {
+                        self.plan.pop_front();
+                        self.phase = Phase::Idle;
+                        continue;
+                    }
+                    self.phase = Phase::Travel {
+                        from,
+                        dir,
+                        trap,
+                        cycles: cycles + 1,
+                    };
+                    break;
+                }
+                Phase::Dwell { left } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if left <= 1 {
+                        self.plan.pop_front();
+                        self.phase = Phase::Idle;
+                    } else {
+                        self.phase = Phase::Dwell { left: left - 1 };
+                    }
+                    break;
+                }
+                Phase::Idle => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if !self.start_next()? {
+                        break;
+                    }
+                }
+                Phase::Paused | Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
+                    self.lost += dv_left;
+                    break;
+                }
+            }
+        }
+        if matches!(self.phase, Phase::Print { .. }) {
+            self.decide_valves()?;
+        }
+        Ok(dv)
+    }
+
+    fn settle_limit(&self) -> u64 {
+        // Ten times the slowest line's dead time plus eight time constants, at least 1 s.
+        let mut s = R::ONE;
+        for i in self.machine.inlets.iter() {
+            s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
+        }
+        (s / self.machine.dt()).round_i64().max(1) as u64
+    }
+
+    /// Takes the next plan item when idle. Returns true if a new phase began that should
+    /// see this cycle too.
+    fn start_next(&mut self) -> Result<bool, Fault> {
+        if self.pause_requested {
+            self.phase = Phase::Paused;
+            return Ok(false);
+        }
+        let Some(item) = self.plan.front().copied() else {
+            if !self.begun || self.ended {
+                self.phase = if self.ended { Phase::Done } else { Phase::Idle };
+            }
+            return Ok(false);
+        };
+        match item {
+            Item::Seg(seg) => {
+                self.last_index = seg.index;
+                self.head = seg.u_start;
+                self.phase = Phase::Print { stopping: false };
+                // Open the valve of the material the cursor stands on.
+                self.want = Some(self.entry_material);
+                self.model.command(1 << self.entry_material);
+                self.stop.reset();
+                self.switch.reset();
+                Ok(false)
+            }
+            Item::Travel { to, index } => {
+                self.last_index = index;
+                let from = self.head_pos;
+                let mut delta = [R::ZERO; 3];
+                let mut len2 = R::ZERO;
+                for a in 0..3 {
+                    delta[a] = to[a] - from[a];
+                    len2 += delta[a] * delta[a];
+                }
+                let len = len2.sqrt();
+                if len <= R::of(1e-6) {
+                    self.head_pos = to;
+                    self.plan.pop_front();
+                    return Ok(true);
+                }
+                let mut dir = [R::ZERO; 3];
+                let mut v = self.machine.motion.travel_speed;
+                let mut acc = R::of(1e9);
+                for a in 0..3 {
+                    dir[a] = delta[a] / len;
+                    let c = dir[a].abs();
+                    if c > R::of(1e-9) {
+                        v = v.min(self.machine.motion.max_speed[a] / c);
+                        acc = acc.min(self.machine.motion.max_accel[a] / c);
+                    }
+                }
+                self.phase = Phase::Travel {
+                    from,
+                    dir,
+                    trap: Trapezoid::new(len, v, acc),
+                    cycles: 0,
+                };
+                Ok(false)
+            }
+            Item::Dwell { cycles, index } => {
+                self.last_index = index;
+                self.phase = Phase::Dwell { left: cycles };
+                Ok(false)
+            }
+            Item::End { index } => {
+                self.last_index = index;
+                self.plan.pop_front();
+                self.phase = Phase::Done;
+                Ok(false)
+            }
+        }
+    }
+
+    /// Moves the head to plan volume `self.head` along the current bead. Returns true
+    /// when the bead ended and the next phase should run this cycle.
+    fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
+        let s = self.machine.bead_area;
+        for _ in 0..PLAN_CAPACITY {
+            let Some(Item::Seg(seg)) = self.plan.front().copied() else {
+                // Printing with no segment queued: the feeder fell behind.
+                return Err(Fault::Underrun);
+            };
+            self.last_index = seg.index;
+            if self.head >= seg.u_end {
+                if seg.last {
+                    self.end_bead(seg, stopping);
+                    return Ok(true);
+                }
+                self.plan.pop_front();
+                if self.plan.is_empty() {
+                    return Err(Fault::Underrun);
+                }
+                continue;
+            }
+            if seg.last && stopping && q <= self.machine.q_stop && self.model.commanded() == 0 {
+                // The tail has run out short of the end: the rest is within the stop
+                // threshold; finish the bead here.
+                self.end_bead(seg, stopping);
+                return Ok(true);
+            }
+            let off = (self.head - seg.u_start).mm3::<R>() / s;
+            if off <= seg.len {
+                self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
+                self.head_pos[1] = seg.start[1] + seg.dir[1] * off;
+            } else if let Some(f) = seg.fillet {
+                let p = f.point((off - seg.len).min(f.length()));
+                self.head_pos[0] = p[0];
+                self.head_pos[1] = p[1];
+            }
+            return Ok(false);
+        }
+        Ok(false)
+    }
+
+    fn end_bead(&mut self, seg: Seg<R>, stopping: bool) {
+        if !stopping || self.model.commanded() != 0 {
+            self.model.command(0);
+            self.want = None;
+        }
+        // Volume past the end stays where the head stops.
+        if self.head > seg.u_end {
+            self.lost += self.head - seg.u_end;
+        }
+        self.head = seg.u_end;
+        let end = seg_end(&seg);
+        self.head_pos[0] = end[0];
+        self.head_pos[1] = end[1];
+        self.plan.pop_front();
+        self.switch.reset();
+        self.stop.reset();
+        self.phase = Phase::Settle { cycles: 0 };
+    }
+
+    /// Valve decisions while printing: switch material when the cursor (head + transit
+    /// volume + predicted switch lead) reaches the next boundary; stop the flow when the
+    /// head plus the predicted tail reaches the bead's end.
+    fn decide_valves(&mut self) -> Result<(), Fault> {
+        let Phase::Print { stopping } = self.phase else {
+            return Ok(());
+        };
+        let entry = self.head + self.machine.v_transit();
+        // Boundaries that can no longer be placed (behind the cursor) are consumed.
+        while let Some(&(u, m)) = self.boundaries.front() {
+            if u <= entry {
+                self.entry_material = m;
+                self.boundaries.pop_front();
+            } else {
+                break;
+            }
+        }
+        if let Some(known) = self.known_to {
+            if known < entry + self.window {
+                return Err(if self.room() == 0 {
+                    Fault::LookaheadFull
+                } else {
+                    Fault::Underrun
+                });
+            }
+        }
+        // Material switch.
+        if let Some(&(u_b, m)) = self.boundaries.front() {
+            if Some(m) == self.want && !stopping {
+                // Already feeding it: nothing to do but pass the boundary.
+                if entry + self.window >= u_b {
+                    self.entry_material = m;
+                    self.boundaries.pop_front();
+                }
+            } else if entry + self.window >= u_b {
+                if let Some(lead) = self.switch.estimate(&self.model, Goal::Switch(m)) {
+                    if entry + Vol::from_mm3(lead) >= u_b {
+                        self.model.command(1 << m);
+                        self.want = Some(m);
+                        self.entry_material = m;
+                        self.boundaries.pop_front();
+                        self.switch.reset();
+                        self.stop.reset();
+                    }
+                }
+            }
+        }
+        // End of the bead.
+        if let Some(end) = self.bead_end() {
+            if self.model.commanded() != 0 && self.head + self.window >= end {
+                if let Some(tail) = self.stop.estimate(&self.model, Goal::Stop) {
+                    if self.head + Vol::from_mm3(tail) >= end {
+                        self.model.command(0);
+                        self.want = None;
+                        self.phase = Phase::Print { stopping: true };
+                        self.stop.reset();
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Plan volume where the current bead ends, if its last segment is planned.
+    fn bead_end(&self) -> Option<Vol> {
+        for item in self.plan.iter() {
+            match item {
+                Item::Seg(s) if s.last => return Some(s.u_end),
+                Item::Seg(_) => continue,
+                _ => return None,
+            }
+        }
+        None
+    }
+
+    fn check_limits(&self, p: [R; 3]) -> Result<(), Fault> {
+        for (a, axis) in Axis::ALL.iter().enumerate() {
+            if !(p[a] >= self.machine.motion.min_mm[a] && p[a] <= self.machine.motion.max_mm[a]) {
+                return Err(Fault::Limit { axis: *axis });
+            }
+        }
+        Ok(())
+    }
+
+    /// Turns a command into plan items and boundaries.
+    fn plan_command(&mut self, cmd: Command) -> Result<(), Fault> {
+        if self.ended {
+            return Err(Fault::InvalidCommand(CommandError::AfterEnd));
+        }
+        let index = self.commands;
+        match cmd {
+            Command::Print { dx, dy, material } => {
+                if material as usize >= self.machine.inlet_count() {
+                    return Err(Fault::InvalidCommand(CommandError::NoSuchInlet {
+                        material,
+                        inlets: self.machine.inlet_count() as u8,
+                    }));
+                }
+                let (dxl, dyl) = (dx as i64, dy as i64);
+                if dxl.abs() > MAX_SEGMENT_UM || dyl.abs() > MAX_SEGMENT_UM {
+                    return Err(Fault::InvalidCommand(CommandError::SegmentTooLong));
+                }
+                let from_um = self.design_um;
+                let to_um = [
+                    sat_i32(from_um[0] as i64 + dxl),
+                    sat_i32(from_um[1] as i64 + dyl),
+                    from_um[2],
+                ];
+                let to3 = [um(to_um[0]), um(to_um[1]), um(to_um[2])];
+                self.check_limits(to3)?;
+                if dx == 0 && dy == 0 {
+                    return Ok(());
+                }
+                self.design_um = to_um;
+                let from = [um::<R>(from_um[0]), um(from_um[1])];
+                let to = [to3[0], to3[1]];
+                let length = R::of(((dxl * dxl + dyl * dyl) as f64).sqrt() * 1e-3);
+                let dir = [(to[0] - from[0]) / length, (to[1] - from[1]) / length];
+                let (t_start, u_start) = match self.open.take() {
+                    Some(prev) => {
+                        let (seg, t) = self.finalise(prev, Some((dir, length)));
+                        let _ = self.plan.push_back(Item::Seg(seg));
+                        if seg.material != material {
+                            let mid = seg.u_arc + Vol((seg.u_end - seg.u_arc).0 / 2);
+                            let _ = self.boundaries.push_back((mid, material));
+                        }
+                        self.last_final = Some((seg.material, seg.u_end));
+                        self.known_to = Some(seg.u_end);
+                        (t, seg.u_end)
+                    }
+                    None => {
+                        let (m, u) = self.last_final.unwrap_or((material, Vol::ZERO));
+                        if m != material {
+                            let _ = self.boundaries.push_back((u, material));
+                        }
+                        (R::ZERO, u)
+                    }
+                };
+                self.open = Some(Open {
+                    material,
+                    from,
+                    to,
+                    dir,
+                    length,
+                    t_start,
+                    u_start,
+                    index,
+                });
+                Ok(())
+            }
+            Command::Travel { x, y, z } => {
+                let to = [um(x), um(y), um(z)];
+                self.check_limits(to)?;
+                self.close_bead();
+                self.design_um = [x, y, z];
+                let _ = self.plan.push_back(Item::Travel { to, index });
+                Ok(())
+            }
+            Command::Layer { z } => {
+                let [x, y, _] = self.design_um;
+                let to = [um(x), um(y), um(z)];
+                self.check_limits(to)?;
+                self.close_bead();
+                self.design_um[2] = z;
+                let _ = self.plan.push_back(Item::Travel { to, index });
+                Ok(())
+            }
+            Command::Dwell { ms } => {
+                if ms > MAX_DWELL_MS {
+                    return Err(Fault::InvalidCommand(CommandError::DwellTooLong { ms }));
+                }
+                self.close_bead();
+                let cycles = (ms as u64 * 1000).div_ceil(self.machine.period_us as u64);
+                let _ = self.plan.push_back(Item::Dwell { cycles, index });
+                Ok(())
+            }
+            Command::End => {
+                self.close_bead();
+                let _ = self.plan.push_back(Item::End { index });
+                self.ended = true;
+                self.known_to = None;
+                Ok(())
+            }
+        }
+    }
+
+    /// Finalises the open segment as the last of its bead.
+    fn close_bead(&mut self) {
+        if let Some(prev) = self.open.take() {
+            let (seg, _) = self.finalise(prev, None);
+            let _ = self.plan.push_back(Item::Seg(seg));
+            self.last_final = Some((seg.material, seg.u_end));
+            self.known_to = Some(seg.u_end);
+        }
+    }
+
+    /// Fixes an open segment's end: the fillet into `next` (direction, length), or the
+    /// bead's end. Returns the segment and the tangent length the next one starts with.
+    fn finalise(&self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
+        let s = self.machine.bead_area;
+        let f = next.and_then(|(d2, l2)| {
+            let max_t = (o.length.min(l2)) * R::HALF;
+            fillet(o.to, o.dir, d2, self.machine.corner_radius, max_t)
+        });
+        let t_end = f.map(|f| f.tangent).unwrap_or(R::ZERO);
+        let len = (o.length - o.t_start - t_end).max(R::ZERO);
+        let start = [o.from[0] + o.dir[0] * o.t_start, o.from[1] + o.dir[1] * o.t_start];
+        let u_arc = o.u_start + Vol::from_mm3(len * s);
+        let u_end = u_arc + f.map(|f| Vol::from_mm3(f.length() * s)).unwrap_or(Vol::ZERO);
+        (
+            Seg {
+                material: o.material,
+                start,
+                dir: o.dir,
+                len,
+                fillet: f,
+                u_start: o.u_start,
+                u_arc,
+                u_end,
+                last: next.is_none(),
+                index: o.index,
+            },
+            t_end,
+        )
+    }
+}
+
+fn seg_end<R: Real>(seg: &Seg<R>) -> V2<R> {
+    match seg.fillet {
+        Some(f) => f.point(f.length()),
+        None => [
+            seg.start[0] + seg.dir[0] * seg.len,
+            seg.start[1] + seg.dir[1] * seg.len,
+        ],
+    }
+}
+
+fn um<R: Real>(v: i32) -> R {
+    R::of(v as f64 * 1e-3)
+}
+
+fn sat_i32(v: i64) -> i32 {
+    v.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+}
+
+/// How far ahead of a boundary (as volume) predictions start: the most that can flow at
+/// top speed during the slowest valve's dead time plus eight time constants, plus 2 ms.
+fn lead_window<R: Real, const N: usize>(m: &Machine<R, N>) -> Vol {
+    let mut t = R::of(0.002);
+    let mut worst = R::ZERO;
+    for i in m.inlets.iter() {
+        let d = i.open_delay_s.max(i.close_delay_s) + R::of(8.0) * i.rise_s.max(i.decay_s);
+        worst = worst.max(d);
+    }
+    t += worst;
+    Vol::from_mm3(m.v_flow_max * m.bead_area * t)
+}

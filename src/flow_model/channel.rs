@@ -1,0 +1,246 @@
+//! The shared channel and hanging filament as a FIFO of material slugs in plug flow: what
+//! enters pushes the oldest out, and the per-material volume inside the channel (which sets
+//! its resistance) is kept exactly in fixed point. Flow rates are `mod.rs`'s business.
+
+use crate::vol::Vol;
+use heapless::Deque;
+
+/// Slugs the channel model holds, from the plate to the junction. Each change of the
+/// feeding material starts one, so this bounds how many features can be in flight at once:
+/// the smallest printable feature is about (channel + hanging volume) / 64 of bead.
+pub const SLUG_CAPACITY: usize = 64;
+
+/// One run of a single material, starting at entry coordinate `start`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Slug {
+    /// Inlet index of the material.
+    pub material: u8,
+    /// Cumulative entered volume at which this slug began entering.
+    pub start: Vol,
+}
+
+/// Coordinates: `entered` counts every volume that ever entered. The channel occupies
+/// `[entered - v_channel, entered)`, the hanging filament below it
+/// `[entered - v_transit, entered - v_channel)`; below that it lies on the plate.
+#[derive(Clone, Debug)]
+pub struct Channel<const N: usize> {
+    slugs: Deque<Slug, SLUG_CAPACITY>,
+    entered: Vol,
+    v_channel: Vol,
+    v_transit: Vol,
+    /// Volume of each material inside the channel (not the hanging filament).
+    in_channel: [Vol; N],
+    /// Index of the slug at the channel exit.
+    exit_idx: usize,
+}
+
+/// The channel could not take another slug.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChannelFull;
+
+impl<const N: usize> Channel<N> {
+    /// A channel and filament full of `material`.
+    pub fn full_of(material: u8, v_channel: Vol, v_hang: Vol) -> Self {
+        let v_transit = v_channel + v_hang;
+        let mut slugs = Deque::new();
+        let _ = slugs.push_back(Slug {
+            material,
+            start: Vol::ZERO,
+        });
+        let mut in_channel = [Vol::ZERO; N];
+        if let Some(v) = in_channel.get_mut(material as usize) {
+            *v = v_channel;
+        }
+        Channel {
+            slugs,
+            entered: v_transit,
+            v_channel,
+            v_transit,
+            in_channel,
+            exit_idx: 0,
+        }
+    }
+
+    /// The i-th slug from the plate end, in O(1).
+    #[inline]
+    fn slug(&self, i: usize) -> Option<&Slug> {
+        let (a, b) = self.slugs.as_slices();
+        if i < a.len() {
+            a.get(i)
+        } else {
+            b.get(i - a.len())
+        }
+    }
+
+    /// Volume of each material inside the channel.
+    pub fn in_channel(&self) -> &[Vol; N] {
+        &self.in_channel
+    }
+    /// Material entering now (the newest slug's).
+    pub fn newest(&self) -> u8 {
+        self.slugs.back().map(|s| s.material).unwrap_or(0)
+    }
+    /// Material at the channel exit (nozzle tip).
+    pub fn at_exit(&self) -> u8 {
+        self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0)
+    }
+    /// Material landing on the plate now.
+    pub fn landing(&self) -> u8 {
+        self.slugs.front().map(|s| s.material).unwrap_or(0)
+    }
+    /// Cumulative entered volume.
+    pub fn entered(&self) -> Vol {
+        self.entered
+    }
+    /// Slugs from the plate end to the junction.
+    pub fn slugs(&self) -> impl Iterator<Item = &Slug> {
+        self.slugs.iter()
+    }
+    /// Number of slugs held.
+    pub fn len(&self) -> usize {
+        self.slugs.len()
+    }
+    /// Never true: the channel always holds at least one slug.
+    pub fn is_empty(&self) -> bool {
+        self.slugs.is_empty()
+    }
+
+    /// Volume that can still pass the channel exit before the material there changes,
+    /// or `None` if the exit is inside the newest slug.
+    pub fn exit_room(&self) -> Option<Vol> {
+        let exit = self.entered - self.v_channel;
+        self.slug(self.exit_idx + 1).map(|next| next.start - exit)
+    }
+
+    /// Upcoming changes at the exit: (volume from the exit to the change, material after),
+    /// nearest first, at most `out.len()`. Returns how many were written.
+    pub fn exit_changes(&self, out: &mut [(Vol, u8)]) -> usize {
+        let exit = self.entered - self.v_channel;
+        let mut n = 0;
+        while n < out.len() {
+            match self.slug(self.exit_idx + 1 + n) {
+                Some(s) => out[n] = (s.start - exit, s.material),
+                None => break,
+            }
+            n += 1;
+        }
+        n
+    }
+
+    /// Starts a new slug if `material` differs from the one entering.
+    pub fn feed(&mut self, material: u8) -> Result<(), ChannelFull> {
+        if self.newest() == material {
+            return Ok(());
+        }
+        self.slugs
+            .push_back(Slug {
+                material,
+                start: self.entered,
+            })
+            .map_err(|_| ChannelFull)
+    }
+
+    /// Moves `dv` of the newest slug's material in at the junction; as much leaves the
+    /// channel into the filament and lands on the plate. Returns how many material changes
+    /// landed on the plate during this advance.
+    pub fn advance(&mut self, dv: Vol) -> u32 {
+        if dv.0 <= 0 {
+            return 0;
+        }
+        let newest = self.newest() as usize;
+        if let Some(v) = self.in_channel.get_mut(newest) {
+            *v += dv;
+        }
+        // Channel exit moves from `exit` to `exit + dv`, crossing slug starts.
+        let mut exit = self.entered - self.v_channel;
+        let exit_end = exit + dv;
+        loop {
+            let here = self.slug(self.exit_idx).map(|s| s.material as usize).unwrap_or(0);
+            let next_start = self.slug(self.exit_idx + 1).map(|s| s.start);
+            let upto = match next_start {
+                Some(ns) if ns < exit_end => ns,
+                _ => exit_end,
+            };
+            if let Some(v) = self.in_channel.get_mut(here) {
+                *v -= upto - exit;
+            }
+            exit = upto;
+            if upto < exit_end {
+                self.exit_idx += 1;
+            } else {
+                break;
+            }
+        }
+        self.entered += dv;
+        // Landing: drop slugs wholly on the plate.
+        let landed_to = self.entered - self.v_transit;
+        let mut changes = 0;
+        while self.slugs.len() > 1 {
+            let second = self.slug(1).map(|s| s.start).unwrap_or(Vol(i64::MAX));
+            if second <= landed_to {
+                self.slugs.pop_front();
+                self.exit_idx = self.exit_idx.saturating_sub(1);
+                changes += 1;
+            } else {
+                break;
+            }
+        }
+        changes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plug_flow_moves_slugs_through_channel_and_filament() {
+        let mut c: Channel<4> = Channel::full_of(0, Vol(1000), Vol(200));
+        assert_eq!(c.in_channel()[0], Vol(1000));
+        c.feed(1).unwrap();
+        assert_eq!(c.advance(Vol(300)), 0);
+        assert_eq!(c.in_channel()[0], Vol(700));
+        assert_eq!(c.in_channel()[1], Vol(300));
+        assert_eq!(c.exit_room(), Some(Vol(700)));
+        c.feed(2).unwrap();
+        c.advance(Vol(100));
+        assert_eq!(c.in_channel(), &[Vol(600), Vol(300), Vol(100), Vol(0)]);
+        // Material 1 reaches the exit after 600 more, the plate after 200 beyond that.
+        c.advance(Vol(650));
+        assert_eq!(c.at_exit(), 1);
+        assert_eq!(c.landing(), 0);
+        assert_eq!(c.advance(Vol(200)), 1);
+        assert_eq!(c.landing(), 1);
+        let total: i64 = c.in_channel().iter().map(|v| v.0).sum();
+        assert_eq!(total, 1000);
+    }
+
+    #[test]
+    fn a_slug_shorter_than_one_advance_is_crossed_in_one_step() {
+        let mut c: Channel<4> = Channel::full_of(0, Vol(1000), Vol(0));
+        for m in [1u8, 2, 3, 0] {
+            c.feed(m).unwrap();
+            c.advance(Vol(10));
+        }
+        // Push everything out in one go: 1040 entered since; slugs 0(960)|1|2|3|0(10) ...
+        c.feed(1).unwrap();
+        let changes = c.advance(Vol(2000));
+        assert_eq!(changes, 5);
+        assert_eq!(c.in_channel()[1], Vol(1000));
+        assert_eq!(c.len(), 1);
+    }
+
+    #[test]
+    fn capacity_is_reported_not_panicked() {
+        let mut c: Channel<2> = Channel::full_of(0, Vol(1_000_000), Vol(0));
+        let mut full = false;
+        for i in 0..200 {
+            if c.feed((i % 2) as u8).is_err() {
+                full = true;
+                break;
+            }
+            c.advance(Vol(1));
+        }
+        assert!(full);
+    }
+}

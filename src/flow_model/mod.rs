@@ -1,0 +1,285 @@
+//! The flow model: inlet lines (dead time, pressure rise/decay), the junction (the highest
+//! line pressure feeds the channel), and the channel of slugs whose resistance sets the
+//! flow. One `step` per control cycle gives the volume that left the nozzle. It knows
+//! nothing of the head or the job; the executor turns volume into motion.
+
+pub mod channel;
+pub mod lines;
+pub mod predict;
+pub mod solve;
+
+use crate::config::Machine;
+use crate::real::Real;
+use crate::rheology::FlowLaw;
+use crate::vol::Vol;
+use channel::{Channel, ChannelFull};
+use lines::{Line, LineParams};
+
+/// Longest stretch, in cycles, that the predictor integrates in one piece.
+pub const MAX_CHUNK: usize = 16;
+
+/// What one control cycle did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleFlow<R> {
+    /// Volume that entered the channel (= left the nozzle = landed: plug flow).
+    pub dv: Vol,
+    /// Mean flow over the cycle, mm^3/s.
+    pub q: R,
+    /// Inlet that fed the channel, if anything flowed.
+    pub feeding: Option<u8>,
+    /// Material changes that landed on the plate during the cycle.
+    pub landed_changes: u32,
+}
+
+/// Powers `(1 - alpha)^j` of a line's per-cycle decay factor, j = 0..=MAX_CHUNK, for the
+/// rise (index 0) and decay (index 1) time constants.
+pub type Powers<R> = [[R; MAX_CHUNK + 1]; 2];
+
+/// The model of valves, lines and channel, stepped once per control cycle of `dt`.
+#[derive(Clone, Debug)]
+pub struct FlowModel<R, const N: usize> {
+    params: heapless::Vec<LineParams<R>, N>,
+    powers: heapless::Vec<Powers<R>, N>,
+    lines: heapless::Vec<Line<R>, N>,
+    laws: heapless::Vec<FlowLaw<R>, N>,
+    channel: Channel<N>,
+    dt: R,
+    next: u64,
+    q: R,
+    feeding: Option<u8>,
+    all_linear: bool,
+}
+
+impl<R: Real, const N: usize> FlowModel<R, N> {
+    /// A model at rest: valves shut, lines vented, channel and filament full of `material`.
+    pub fn new(machine: &Machine<R, N>, material: u8) -> Self {
+        let dt = machine.dt();
+        let mut params = heapless::Vec::new();
+        let mut powers = heapless::Vec::new();
+        let mut lines = heapless::Vec::new();
+        let mut laws = heapless::Vec::new();
+        let mut all_linear = true;
+        for inlet in machine.inlets.iter() {
+            let p = LineParams::new(inlet, dt);
+            let mut pw: Powers<R> = [[R::ONE; MAX_CHUNK + 1]; 2];
+            for (row, a) in [p.alpha_rise, p.alpha_decay].into_iter().enumerate() {
+                for j in 1..=MAX_CHUNK {
+                    pw[row][j] = pw[row][j - 1] * (R::ONE - a);
+                }
+            }
+            // Capacities equal the machine's, so these pushes cannot fail.
+            let _ = params.push(p);
+            let _ = powers.push(pw);
+            let _ = lines.push(Line::default());
+            let _ = laws.push(inlet.law);
+            all_linear &= inlet.law.linear;
+        }
+        FlowModel {
+            params,
+            powers,
+            lines,
+            laws,
+            channel: Channel::full_of(material, machine.v_channel, machine.v_hang),
+            dt,
+            next: 0,
+            q: R::ZERO,
+            feeding: None,
+            all_linear,
+        }
+    }
+
+    /// Commands the valves: bit i of `mask` opens inlet i. Acts after each valve's dead
+    /// time, counted from the start of the next cycle.
+    pub fn command(&mut self, mask: u32) {
+        for (i, (line, p)) in self.lines.iter_mut().zip(self.params.iter()).enumerate() {
+            line.command(mask & (1 << i) != 0, self.next, p);
+        }
+    }
+
+    /// The valve mask last commanded.
+    pub fn commanded(&self) -> u32 {
+        let mut m = 0;
+        for (i, l) in self.lines.iter().enumerate() {
+            if l.commanded {
+                m |= 1 << i;
+            }
+        }
+        m
+    }
+
+    /// Integrates one control cycle.
+    pub fn step(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
+        let k = self.next;
+        self.next += 1;
+        let dt = self.dt;
+        let mut best: Option<(usize, R)> = None;
+        for (i, (line, p)) in self.lines.iter_mut().zip(self.params.iter()).enumerate() {
+            line.apply_due(k);
+            let imp = line.step(dt, p);
+            let better = match best {
+                None => imp > R::ZERO,
+                Some((b, bi)) => imp > bi || (imp == bi && Some(i as u8) == self.feeding && b != i),
+            };
+            if better {
+                best = Some((i, imp));
+            }
+        }
+        let Some((f, impulse)) = best else {
+            self.q = R::ZERO;
+            return Ok(CycleFlow {
+                dv: Vol::ZERO,
+                q: R::ZERO,
+                feeding: None,
+                landed_changes: 0,
+            });
+        };
+        let (dv, changes) = if self.all_linear {
+            self.advance_linear(f, impulse)?
+        } else {
+            let vin = self.vin();
+            let q = solve::flow(&self.laws, &vin, impulse / dt, self.q);
+            let dv = Vol::from_mm3(q * dt);
+            if dv.0 > 0 {
+                self.channel.feed(f as u8)?;
+                (dv, self.channel.advance(dv))
+            } else {
+                (Vol::ZERO, 0)
+            }
+        };
+        if dv.0 > 0 {
+            self.feeding = Some(f as u8);
+        }
+        self.q = dv.mm3::<R>() / dt;
+        Ok(CycleFlow {
+            dv,
+            q: self.q,
+            feeding: Some(f as u8),
+            landed_changes: changes,
+        })
+    }
+
+    /// Exact volume for Newtonian content: with R(V) = R0 + kV between exit changes,
+    /// `R0 V + k V^2 / 2 = impulse`, solved in the cancellation-free form
+    /// `V = 2 impulse / (R0 + sqrt(R0^2 + 2 k impulse))`.
+    fn advance_linear(&mut self, feeding: usize, mut impulse: R) -> Result<(Vol, u32), ChannelFull> {
+        let mut total = Vol::ZERO;
+        let mut changes = 0;
+        let a_in = self.laws[feeding].a;
+        // Each pass crosses one slug boundary at the exit; bounded by the slug count.
+        for pass in 0..=channel::SLUG_CAPACITY {
+            let r0 = self.resistance_linear();
+            let k = a_in - self.laws[self.channel.at_exit() as usize].a;
+            let disc = (r0 * r0 + R::TWO * k * impulse).max(R::ZERO);
+            let dv = R::TWO * impulse / (r0 + disc.sqrt());
+            if pass == 0 {
+                // A slug starts only when something actually enters.
+                if Vol::from_mm3(dv).0 <= 0 {
+                    return Ok((Vol::ZERO, 0));
+                }
+                self.channel.feed(feeding as u8)?;
+            }
+            match self.channel.exit_room() {
+                Some(room) if Vol::from_mm3(dv) > room => {
+                    let rm: R = room.mm3();
+                    impulse -= r0 * rm + k * rm * rm * R::HALF;
+                    changes += self.channel.advance(room);
+                    total += room;
+                }
+                _ => {
+                    let d = Vol::from_mm3(dv);
+                    changes += self.channel.advance(d);
+                    total += d;
+                    break;
+                }
+            }
+        }
+        Ok((total, changes))
+    }
+
+    /// Channel resistance when all content is Newtonian, Pa s / mm^3.
+    #[inline]
+    pub fn resistance_linear(&self) -> R {
+        let mut r = R::ZERO;
+        for (law, v) in self.laws.iter().zip(self.channel.in_channel().iter()) {
+            if v.0 != 0 {
+                r += law.a * v.mm3::<R>();
+            }
+        }
+        r
+    }
+
+    /// Per-material volume in the channel, mm^3.
+    pub fn vin(&self) -> [R; N] {
+        let mut out = [R::ZERO; N];
+        for (o, v) in out.iter_mut().zip(self.channel.in_channel().iter()) {
+            *o = v.mm3();
+        }
+        out
+    }
+
+    /// Instantaneous flow at the current line pressures and channel content, mm^3/s.
+    pub fn flow_now(&self) -> R {
+        let p = self.junction_pa();
+        if p <= R::ZERO {
+            return R::ZERO;
+        }
+        let vin = self.vin();
+        solve::flow(&self.laws, &vin, p, self.q)
+    }
+
+    /// Highest line pressure: the junction's, Pa.
+    pub fn junction_pa(&self) -> R {
+        let mut p = R::ZERO;
+        for l in self.lines.iter() {
+            p = p.max(l.p);
+        }
+        p
+    }
+
+    /// Mean flow over the last cycle, mm^3/s.
+    pub fn q(&self) -> R {
+        self.q
+    }
+    /// The channel and filament.
+    pub fn channel(&self) -> &Channel<N> {
+        &self.channel
+    }
+    /// Inlet lines.
+    pub fn lines(&self) -> &[Line<R>] {
+        &self.lines
+    }
+    /// Per-line constants.
+    pub fn params(&self) -> &[LineParams<R>] {
+        &self.params
+    }
+    /// Per-line powers of the decay factors.
+    pub fn powers(&self) -> &[Powers<R>] {
+        &self.powers
+    }
+    /// Flow laws per inlet.
+    pub fn laws(&self) -> &[FlowLaw<R>] {
+        &self.laws
+    }
+    /// True when every material is Newtonian.
+    pub fn all_linear(&self) -> bool {
+        self.all_linear
+    }
+    /// Index of the next cycle to integrate.
+    pub fn next_cycle(&self) -> u64 {
+        self.next
+    }
+    /// Cycle length, s.
+    pub fn dt(&self) -> R {
+        self.dt
+    }
+    /// Inlet that fed the channel last.
+    pub fn feeding(&self) -> Option<u8> {
+        self.feeding
+    }
+    /// True while some valve is open or a line still holds pressure above `p_min`.
+    pub fn active(&self, p_min: R) -> bool {
+        self.lines
+            .iter()
+            .any(|l| l.open || l.commanded || !l.pending.is_empty() || l.p > p_min)
+    }
+}

@@ -1,0 +1,29 @@
+//! dollop's planning core: configuration, flow model, volume-clock executor and step
+//! generation for single-nozzle multi-material DIW printers. `no_std`, no heap, no HAL:
+//! the same code runs on the STM32 and in host tests; board glue lives elsewhere.
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod command;
+pub mod config;
+pub mod executor;
+pub mod flow_model;
+mod fmt;
+pub mod job;
+pub mod motion;
+pub mod outputs;
+pub mod real;
+pub mod rheology;
+pub mod step_gen;
+pub mod vol;
+
+pub use command::Command;
+pub use config::{Config, ConfigError, Machine};
+pub use executor::{Executor, Fault, Report, RunState};
+pub use outputs::{Axis, Outputs, RecordingOutputs};
+pub use real::Real;
+pub use vol::Vol;
+
+/// Most inlets (valves and materials) one build of the core supports by default.
+pub const DEFAULT_INLETS: usize = 4;
