@@ -165,6 +165,8 @@ pub struct Report<R> {
     pub lost_volume: Vol,
     /// Cycles run since the job began.
     pub cycle: u64,
+    /// Material slugs in the channel and hanging filament (features in flight).
+    pub slugs: u8,
 }
 
 /// A finalised print segment: the straight part, then the fillet into the next segment.
@@ -264,7 +266,10 @@ impl<R: Real, const N: usize> Tracker<R, N> {
         let now = model.next_cycle();
         match (self.last, self.prev) {
             (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
-                let slope = (v1 - v0) / R::of((t1 - t0) as f64);
+                // A lead changes because time passes; it cannot change faster than the
+                // flow itself, which bounds a slope taken across a jump in the state.
+                let cap = model.q() * model.dt();
+                let slope = ((v1 - v0) / R::of((t1 - t0) as f64)).max(-cap).min(cap);
                 Some((v1 + slope * R::of((now - t1) as f64)).max(R::ZERO))
             }
             (Some((_, v1)), _) => Some(v1),
@@ -593,6 +598,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             command_index: self.last_index,
             lost_volume: self.lost,
             cycle: self.cycle,
+            slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
         }
     }
 
@@ -657,7 +663,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
                 Phase::Dwell { left } => {
                     self.lost += dv_left;
-                    dv_left = Vol::ZERO;
                     if left <= 1 {
                         self.plan.pop_front();
                         self.phase = Phase::Idle;
@@ -831,18 +836,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// volume + predicted switch lead) reaches the next boundary; stop the flow when the
     /// head plus the predicted tail reaches the bead's end.
     fn decide_valves(&mut self) -> Result<(), Fault> {
-        let Phase::Print { stopping } = self.phase else {
+        if !matches!(self.phase, Phase::Print { .. }) {
             return Ok(());
-        };
+        }
         let entry = self.head + self.machine.v_transit();
-        // Boundaries that can no longer be placed (behind the cursor) are consumed.
-        while let Some(&(u, m)) = self.boundaries.front() {
-            if u <= entry {
-                self.entry_material = m;
-                self.boundaries.pop_front();
-            } else {
-                break;
-            }
+        // Of several boundaries already behind the cursor only the last still matters.
+        while self.boundaries.iter().nth(1).is_some_and(|b| b.0 <= entry) {
+            self.boundaries.pop_front();
         }
         if let Some(known) = self.known_to {
             if known < entry + self.window {
@@ -855,22 +855,26 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         // Material switch.
         if let Some(&(u_b, m)) = self.boundaries.front() {
-            if Some(m) == self.want && !stopping {
-                // Already feeding it: nothing to do but pass the boundary.
-                if entry + self.window >= u_b {
-                    self.entry_material = m;
+            if m == self.entry_material {
+                // Already the material entering: nothing to switch.
+                if entry >= u_b {
                     self.boundaries.pop_front();
                 }
             } else if entry + self.window >= u_b {
-                if let Some(lead) = self.switch.estimate(&self.model, Goal::Switch(m)) {
-                    if entry + Vol::from_mm3(lead) >= u_b {
-                        self.model.command(1 << m);
-                        self.want = Some(m);
-                        self.entry_material = m;
-                        self.boundaries.pop_front();
-                        self.switch.reset();
-                        self.stop.reset();
-                    }
+                // Behind the cursor already (job start, or a lead the prediction missed):
+                // switch at once; otherwise when the predicted lead says so.
+                let due = entry >= u_b
+                    || self
+                        .switch
+                        .estimate(&self.model, Goal::Switch(m))
+                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
+                if due {
+                    self.model.command(1 << m);
+                    self.want = Some(m);
+                    self.entry_material = m;
+                    self.boundaries.pop_front();
+                    self.switch.reset();
+                    self.stop.reset();
                 }
             }
         }
@@ -1028,7 +1032,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
     fn finalise(&self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
         let s = self.machine.bead_area;
         let f = next.and_then(|(d2, l2)| {
-            let max_t = (o.length.min(l2)) * R::HALF;
+            // This segment's fillet may use all of it that the previous fillet left; the next
+            // segment keeps half for its own far end.
+            let max_t = (o.length - o.t_start).min(l2 * R::HALF);
             fillet(o.to, o.dir, d2, self.machine.corner_radius, max_t)
         });
         let t_end = f.map(|f| f.tangent).unwrap_or(R::ZERO);

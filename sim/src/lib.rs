@@ -1,1 +1,13 @@
-//! Host-side simulation of dollop jobs.
+//! Host-side simulation of dollop jobs: an independent f64 reference plant of the
+//! printhead's physics, a runner that drives the core's executor in virtual time, test
+//! designs, and print-quality metrics. Used by the core's whole-job tests and by
+//! `dollop simulate`; file formats and pictures belong to the host tools.
+
+pub mod designs;
+pub mod metrics;
+pub mod plant;
+pub mod run;
+
+pub use designs::Job;
+pub use metrics::Metrics;
+pub use run::{run, Cycle, RunOptions, RunResult, SimError};

@@ -157,15 +157,16 @@ impl<const N: usize> Channel<N> {
         loop {
             let here = self.slug(self.exit_idx).map(|s| s.material as usize).unwrap_or(0);
             let next_start = self.slug(self.exit_idx + 1).map(|s| s.start);
-            let upto = match next_start {
-                Some(ns) if ns < exit_end => ns,
-                _ => exit_end,
+            // A slug that starts exactly where the exit stops is the exit's slug from now on.
+            let (upto, crossed) = match next_start {
+                Some(ns) if ns <= exit_end => (ns, true),
+                _ => (exit_end, false),
             };
             if let Some(v) = self.in_channel.get_mut(here) {
                 *v -= upto - exit;
             }
             exit = upto;
-            if upto < exit_end {
+            if crossed {
                 self.exit_idx += 1;
             } else {
                 break;
@@ -228,6 +229,18 @@ mod tests {
         assert_eq!(changes, 5);
         assert_eq!(c.in_channel()[1], Vol(1000));
         assert_eq!(c.len(), 1);
+    }
+
+    #[test]
+    fn an_advance_ending_exactly_on_a_slug_start_moves_the_exit_into_it() {
+        let mut c: Channel<4> = Channel::full_of(0, Vol(1000), Vol(0));
+        c.feed(1).unwrap();
+        c.advance(Vol(400));
+        assert_eq!(c.exit_room(), Some(Vol(600)));
+        c.advance(Vol(600));
+        assert_eq!(c.at_exit(), 1);
+        assert_eq!(c.exit_room(), None);
+        assert_eq!(c.in_channel()[0], Vol(0));
     }
 
     #[test]

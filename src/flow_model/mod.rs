@@ -179,7 +179,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                 self.channel.feed(feeding as u8)?;
             }
             match self.channel.exit_room() {
-                Some(room) if Vol::from_mm3(dv) > room => {
+                Some(room) if Vol::from_mm3(dv) > room && room.0 > 0 => {
                     let rm: R = room.mm3();
                     impulse -= r0 * rm + k * rm * rm * R::HALF;
                     changes += self.channel.advance(room);

@@ -117,10 +117,11 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 any_open |= l.open || l.pending.iter().any(|&(_, o)| o);
             }
             let j = j.max(1) as usize;
-            // Where the goal's line already leads right after the changes, it feeds now.
+            // Where the goal's line already leads right after the changes, and nothing can
+            // overtake it any more, it feeds from now on.
             if let Goal::Switch(to) = self.goal {
                 let (lead, other) = self.lead_margin(to as usize, params, true);
-                if lead > R::ZERO && lead >= other {
+                if lead > R::ZERO && lead >= other && self.settled(to as usize) {
                     return Some(Outcome::Volume(self.vol));
                 }
             }
@@ -154,7 +155,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             if let Goal::Switch(to) = self.goal {
                 let (lead, other) = self.lead_margin(to as usize, params, false);
                 let end_margin = other - lead;
-                if end_margin <= R::ZERO && lead > R::ZERO {
+                if end_margin <= R::ZERO && lead > R::ZERO && self.settled(to as usize) {
                     // Crossed inside the chunk: interpolate the pressure difference.
                     let f = if start_margin > end_margin {
                         (start_margin / (start_margin - end_margin)).min(R::ONE).max(R::ZERO)
@@ -179,6 +180,21 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             }
         }
         None
+    }
+
+    /// True once the goal's valve acts open and every other one acts closed with nothing
+    /// pending: the goal's line then only rises and the others only fall, so a lead it
+    /// takes is for good. Before that, an old switch still in its dead time may flip the
+    /// junction once more (A -> B -> A within a few dead times).
+    fn settled(&self, to: usize) -> bool {
+        self.lines.iter().enumerate().all(|(i, l)| {
+            let pending_open = l.pending.iter().any(|&(_, o)| o);
+            if i == to {
+                l.open && l.pending.is_empty()
+            } else {
+                !l.open && !pending_open
+            }
+        })
     }
 
     /// (goal line's pressure, highest other line's pressure); `instant` gives the values

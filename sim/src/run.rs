@@ -1,0 +1,337 @@
+//! The job runner: drives the core's executor tick by tick in virtual time with recording
+//! outputs, feeds its valve commands to the reference plant, and meters what lands where.
+//! Writing traces or pictures is the caller's business (through the per-cycle callback).
+
+use crate::designs::Job;
+use crate::metrics::{CycleIn, Meter, Metrics};
+use crate::plant::Plant;
+use dollop::config::Config;
+use dollop::executor::PushError;
+use dollop::{Executor, Fault, Real, RecordingOutputs, Report, RunState};
+
+/// How to run.
+#[derive(Clone, Copy, Debug)]
+pub struct RunOptions {
+    /// Run the reference plant alongside and meter its physics (slower). Without it the
+    /// executor's own model is metered.
+    pub plant: bool,
+    /// Plant RK4 step, s (split further at valve events).
+    pub plant_step_s: f64,
+    /// Give up after this much simulated time, s.
+    pub max_time_s: f64,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            plant: true,
+            plant_step_s: 1e-4,
+            max_time_s: 3600.0,
+        }
+    }
+}
+
+/// Why a run could not happen at all.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// The config does not validate.
+    #[error("config: {0}")]
+    Config(dollop::ConfigError),
+    /// The job could not begin.
+    #[error("job cannot begin: {0}")]
+    Begin(Fault),
+    /// Simulated time ran out before the job finished.
+    #[error("job did not finish within {0} s of simulated time")]
+    Timeout(f64),
+}
+
+/// One cycle as seen by an observer.
+#[derive(Clone, Copy, Debug)]
+pub struct Cycle<'a, R> {
+    /// Simulated time, s.
+    pub t_s: f64,
+    /// The executor's report (or its fault).
+    pub report: &'a Report<R>,
+    /// What the outputs hold after the cycle.
+    pub outputs: &'a RecordingOutputs,
+    /// Volume the plant (or the model) landed this cycle, mm^3.
+    pub landed_volume: f64,
+    /// Material landing at the end of the cycle.
+    pub landing: u8,
+}
+
+/// The outcome of a run.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Simulated time from begin to the end (Done or fault), s.
+    pub time_s: f64,
+    /// Cycles run.
+    pub cycles: u64,
+    /// State at the end.
+    pub state: RunState,
+    /// The fault, if the run ended in one.
+    pub fault: Option<Fault>,
+    /// Outputs at the end.
+    pub outputs: RecordingOutputs,
+    /// Quality metrics (from the plant if it ran, else from the executor's model).
+    pub metrics: Metrics,
+    /// Valve changes commanded.
+    pub valve_changes: u64,
+    /// Material switches (valve opened while another was feeding).
+    pub switches: u64,
+    /// Highest step rate per axis (steps/s), from the largest per-cycle count.
+    pub peak_step_rate: [f64; 3],
+    /// Largest distance between the commanded step position and the planned position,
+    /// in microsteps, over all cycles and axes.
+    pub worst_step_error: f64,
+    /// Largest centripetal acceleration on print moves, mm/s^2 (speed squared times the
+    /// curvature through points 0.02 mm apart).
+    pub peak_accel: f64,
+    /// Most material slugs in the channel and filament at once while printing.
+    pub max_slugs: u8,
+    /// Bead section S, mm^2.
+    pub bead_area: f64,
+    /// Print segments in the job.
+    pub segments: usize,
+}
+
+/// Runs `job` on `config` with the executor computing in `R`, calling `observe` every
+/// cycle.
+pub fn run<R: Real>(
+    config: &Config,
+    job: &Job,
+    opts: &RunOptions,
+    mut observe: impl FnMut(&Cycle<'_, R>),
+) -> Result<RunResult, SimError> {
+    let machine = config
+        .validate::<R, { dollop::DEFAULT_INLETS }>()
+        .map_err(SimError::Config)?;
+    let period_us = machine.period_us as u64;
+    let dt = period_us as f64 * 1e-6;
+    let spm: [f64; 3] = [
+        machine.motion.steps_per_mm[0].to_f64(),
+        machine.motion.steps_per_mm[1].to_f64(),
+        machine.motion.steps_per_mm[2].to_f64(),
+    ];
+    let bead_area = machine.bead_area.to_f64();
+    let mut exec: Executor<R> = Executor::new(machine);
+    exec.begin(job.start_um, job.initial_material)
+        .map_err(SimError::Begin)?;
+    let mut plant = if opts.plant {
+        Some(Plant::new(config, job.initial_material).map_err(SimError::Config)?)
+    } else {
+        None
+    };
+    let mut meter = Meter::new(&job.commands, job.start_um, bead_area);
+    let mut out = RecordingOutputs::default();
+    // The recording counts steps from zero; the executor's step positions are absolute.
+    let mut origin = [0i64; 3];
+    for a in 0..3 {
+        origin[a] = (job.start_um[a] as f64 * 1e-3 * spm[a]).round() as i64;
+    }
+    let mut next_cmd = 0usize;
+    let mut cycle: u64 = 0;
+    let mut valves_prev = 0u32;
+    let mut switches = 0u64;
+    let mut worst_step_error = 0.0f64;
+    let _ = dt;
+    let mut peak_accel = 0.0f64;
+    let mut hist: [[f64; 2]; 3] = [[f64::NAN; 2]; 3];
+    let mut max_slugs = 0u8;
+    let mut landing_prev = job.initial_material;
+    let max_cycles = (opts.max_time_s / dt) as u64;
+    let mut changes = Vec::new();
+    loop {
+        while next_cmd < job.commands.len() && exec.room() > 0 {
+            match exec.push(job.commands[next_cmd]) {
+                Ok(()) => next_cmd += 1,
+                Err(PushError::Full) => break,
+                Err(PushError::Rejected(_)) => {
+                    next_cmd = job.commands.len();
+                    break;
+                }
+            }
+        }
+        let now = cycle * period_us;
+        let t = now as f64 * 1e-6;
+        let result = exec.tick(now, &mut out);
+        let report = match result {
+            Ok(r) => r,
+            Err(_) => {
+                // Fault: the outputs are already safe; report once more for the record.
+                let r = exec.tick(now + period_us, &mut out).err();
+                let fault = exec.fault_cause().or(r);
+                if let Some(p) = plant.as_mut() {
+                    for i in 0..config.inlets.len() {
+                        p.command(i, out.valves & (1 << i) != 0);
+                    }
+                }
+                return Ok(finish(
+                    exec.state(),
+                    fault,
+                    t,
+                    cycle,
+                    out,
+                    meter.finish(),
+                    switches,
+                    spm,
+                    period_us,
+                    worst_step_error,
+                    peak_accel,
+                    max_slugs,
+                    bead_area,
+                    job,
+                ));
+            }
+        };
+        // What landed during the cycle that just ended.
+        changes.clear();
+        let (landed_volume, landing) = match plant.as_mut() {
+            Some(p) => {
+                let l = p.advance(t, opts.plant_step_s);
+                changes.extend_from_slice(&l.changes);
+                (l.volume, l.material)
+            }
+            None => {
+                let m = report.landing;
+                if m != landing_prev {
+                    changes.push((report.dv.mm3::<f64>(), m));
+                }
+                (report.dv.mm3::<f64>(), m)
+            }
+        };
+        let printing = report.state == RunState::Printing;
+        let on_bead = matches!(report.state, RunState::Printing | RunState::Settling);
+        let pos = [report.position[0].to_f64(), report.position[1].to_f64()];
+        meter.cycle(CycleIn {
+            bead_command: on_bead.then_some(report.command_index),
+            printing,
+            pos,
+            landed_volume,
+            landing_before: landing_prev,
+            changes: &changes,
+        });
+        landing_prev = landing;
+        // Valve changes go to the plant at this instant.
+        if out.valves != valves_prev {
+            let opened = out.valves & !valves_prev;
+            if opened != 0 && valves_prev == 0 && report.feeding.is_some() {
+                switches += 1;
+            } else if opened != 0 && valves_prev != 0 {
+                switches += 1;
+            }
+            if let Some(p) = plant.as_mut() {
+                for i in 0..config.inlets.len() {
+                    p.command(i, out.valves & (1 << i) != 0);
+                }
+            }
+            valves_prev = out.valves;
+        }
+        for a in 0..3 {
+            let planned = report.position[a].to_f64() * spm[a];
+            let commanded = (out.position[a] + origin[a]) as f64;
+            worst_step_error = worst_step_error.max((commanded - planned).abs());
+        }
+        if printing {
+            // Curvature from points ACCEL_BASE_MM apart: per-cycle steps are too short
+            // for the f32 position's rounding.
+            let d = ((pos[0] - hist[2][0]).powi(2) + (pos[1] - hist[2][1]).powi(2)).sqrt();
+            if hist[2][0].is_nan() || d >= ACCEL_BASE_MM {
+                hist = [hist[1], hist[2], pos];
+                let speed = report.speed.to_f64();
+                peak_accel = peak_accel.max(speed * speed * curvature(&hist));
+                max_slugs = max_slugs.max(report.slugs);
+            }
+        } else {
+            hist = [[f64::NAN; 2]; 3];
+        }
+        observe(&Cycle {
+            t_s: t,
+            report: &report,
+            outputs: &out,
+            landed_volume,
+            landing,
+        });
+        cycle += 1;
+        if matches!(report.state, RunState::Done | RunState::Aborted) {
+            return Ok(finish(
+                report.state,
+                None,
+                t,
+                cycle,
+                out,
+                meter.finish(),
+                switches,
+                spm,
+                period_us,
+                worst_step_error,
+                peak_accel,
+                max_slugs,
+                bead_area,
+                job,
+            ));
+        }
+        if cycle > max_cycles {
+            return Err(SimError::Timeout(opts.max_time_s));
+        }
+    }
+}
+
+/// Spacing of the points the path curvature is taken from, mm.
+const ACCEL_BASE_MM: f64 = 0.02;
+
+/// Curvature (1/mm) of the circle through three points; 0 where undefined.
+fn curvature(h: &[[f64; 2]; 3]) -> f64 {
+    if h.iter().any(|p| p[0].is_nan()) {
+        return 0.0;
+    }
+    let a = ((h[1][0] - h[0][0]).powi(2) + (h[1][1] - h[0][1]).powi(2)).sqrt();
+    let b = ((h[2][0] - h[1][0]).powi(2) + (h[2][1] - h[1][1]).powi(2)).sqrt();
+    let c = ((h[2][0] - h[0][0]).powi(2) + (h[2][1] - h[0][1]).powi(2)).sqrt();
+    let cross = (h[1][0] - h[0][0]) * (h[2][1] - h[0][1]) - (h[1][1] - h[0][1]) * (h[2][0] - h[0][0]);
+    if a * b * c <= 0.0 {
+        return 0.0;
+    }
+    2.0 * cross.abs() / (a * b * c)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    state: RunState,
+    fault: Option<Fault>,
+    t: f64,
+    cycles: u64,
+    outputs: RecordingOutputs,
+    metrics: Metrics,
+    switches: u64,
+    spm: [f64; 3],
+    period_us: u64,
+    worst_step_error: f64,
+    peak_accel: f64,
+    max_slugs: u8,
+    bead_area: f64,
+    job: &Job,
+) -> RunResult {
+    let rate = 1e6 / period_us as f64;
+    let _ = spm;
+    RunResult {
+        time_s: t,
+        cycles,
+        state,
+        fault,
+        valve_changes: outputs.valve_changes,
+        peak_step_rate: [
+            outputs.max_per_cycle[0] as f64 * rate,
+            outputs.max_per_cycle[1] as f64 * rate,
+            outputs.max_per_cycle[2] as f64 * rate,
+        ],
+        outputs,
+        metrics,
+        switches,
+        worst_step_error,
+        peak_accel,
+        max_slugs,
+        bead_area,
+        segments: job.print_segments(),
+    }
+}
