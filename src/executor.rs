@@ -6,7 +6,7 @@
 //! `safe_state`. Job intake beyond `push`, and pins, belong to the caller.
 
 use crate::command::{Command, CommandError, MAX_DWELL_MS, MAX_SEGMENT_UM};
-use crate::config::Machine;
+use crate::config::{Config, ConfigError, Machine};
 use crate::flow_model::channel::ChannelFull;
 use crate::flow_model::predict::{Goal, Outcome, Prediction};
 use crate::flow_model::FlowModel;
@@ -29,6 +29,9 @@ pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
 pub const MAX_CATCH_UP: u64 = 4;
 /// Prediction chunks integrated per cycle and per prediction in flight.
 pub const PREDICT_BUDGET: u32 = 4;
+/// Cycles between the starts of successive predictions of one kind (1 ms at 10 kHz);
+/// in between, the last two answers are extrapolated.
+pub const PREDICT_INTERVAL: u64 = 10;
 
 /// Why the executor went to the safe state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -71,6 +74,8 @@ pub enum Fault {
     LinkLost,
     /// A job command arrived with no job begun.
     NotReady,
+    /// A config failed validation while loading; the old one is no longer trusted.
+    InvalidConfig,
 }
 
 impl core::fmt::Display for Fault {
@@ -94,6 +99,7 @@ impl core::fmt::Display for Fault {
             Fault::Watchdog => write!(f, "watchdog expired"),
             Fault::LinkLost => write!(f, "host link lost while printing"),
             Fault::NotReady => write!(f, "command before a job was begun"),
+            Fault::InvalidConfig => write!(f, "machine config failed validation"),
         }
     }
 }
@@ -134,6 +140,24 @@ pub enum PushError {
     Full,
     /// The command is invalid; the executor will go to the safe state on the next tick.
     Rejected(Fault),
+}
+
+/// Why `load_config` did not load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LoadError {
+    /// The config does not validate (the executor went to the safe state).
+    Invalid(ConfigError),
+    /// A job is under way; finish or abort it first.
+    Busy,
+}
+
+impl core::fmt::Display for LoadError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            LoadError::Invalid(e) => write!(f, "{e}"),
+            LoadError::Busy => write!(f, "a job is running; abort or finish it first"),
+        }
+    }
 }
 
 /// The state after a cycle.
@@ -246,12 +270,18 @@ impl<R: Real, const N: usize> Tracker<R, N> {
             self.reset();
             self.goal = Some(goal);
         }
-        let running = self
-            .running
-            .get_or_insert_with(|| Prediction::start(model, goal));
-        if let Some(outcome) = running.advance(model, PREDICT_BUDGET) {
-            let at = running.start_cycle();
+        let now = model.next_cycle();
+        if self.running.is_none()
+            && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL)
+        {
             self.running = Some(Prediction::start(model, goal));
+        }
+        let finished = match self.running.as_mut() {
+            Some(p) => p.advance(model, PREDICT_BUDGET).map(|o| (p.start_cycle(), o)),
+            None => None,
+        };
+        if let Some((at, outcome)) = finished {
+            self.running = None;
             match outcome {
                 Outcome::Volume(v) => {
                     self.prev = self.last;
@@ -263,7 +293,6 @@ impl<R: Real, const N: usize> Tracker<R, N> {
                 }
             }
         }
-        let now = model.next_cycle();
         match (self.last, self.prev) {
             (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
                 // A lead changes because time passes; it cannot change faster than the
@@ -285,6 +314,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     steps: StepGen<R>,
     plan: Deque<Item<R>, PLAN_CAPACITY>,
     boundaries: Deque<(Vol, u8), BOUNDARY_CAPACITY>,
+    /// Plan volume where each planned bead ends, in order (the head's bead first).
+    ends: Deque<Vol, PLAN_CAPACITY>,
     open: Option<Open<R>>,
     /// Material and plan volume at the end of the last finalised print segment.
     last_final: Option<(u8, Vol)>,
@@ -329,6 +360,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             steps,
             plan: Deque::new(),
             boundaries: Deque::new(),
+            ends: Deque::new(),
             open: None,
             last_final: None,
             known_to: Some(Vol::ZERO),
@@ -413,6 +445,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         );
         self.plan.clear();
         self.boundaries.clear();
+        self.ends.clear();
         self.open = None;
         self.last_final = Some((initial_material, Vol::ZERO));
         self.known_to = Some(Vol::ZERO);
@@ -465,6 +498,57 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
     }
 
+    /// Loads a new machine config between jobs. An invalid config is a fault: the
+    /// executor goes to the safe state, because the machine it was told about is wrong.
+    /// While a job runs the config is refused and nothing changes.
+    pub fn load_config(&mut self, config: &Config, out: &mut impl Outputs) -> Result<(), LoadError> {
+        match config.validate::<R, N>() {
+            Err(e) => {
+                self.safe_state(Fault::InvalidConfig, out);
+                Err(LoadError::Invalid(e))
+            }
+            Ok(_) if self.busy() => Err(LoadError::Busy),
+            Ok(m) => {
+                let position = self.steps.position();
+                let last_now = self.last_now;
+                *self = Executor::new(m);
+                self.steps = StepGen::new(
+                    self.machine.motion.steps_per_mm,
+                    self.machine.motion.max_steps_per_cycle,
+                    position,
+                );
+                self.last_now = last_now;
+                Ok(())
+            }
+        }
+    }
+
+    /// True while a job is under way (printing, moving, settling, dwelling or paused).
+    pub fn busy(&self) -> bool {
+        matches!(
+            self.phase,
+            Phase::Print { .. }
+                | Phase::Settle { .. }
+                | Phase::Travel { .. }
+                | Phase::Dwell { .. }
+                | Phase::Paused
+        ) || (self.begun && !self.plan.is_empty() && !matches!(self.phase, Phase::Done | Phase::Aborted | Phase::Faulted(_)))
+    }
+
+    /// Acknowledges a fault or an abort: back to idle with no job, outputs still safe
+    /// until the next job begins.
+    pub fn clear_fault(&mut self) {
+        if matches!(self.phase, Phase::Faulted(_) | Phase::Aborted) {
+            self.phase = Phase::Idle;
+            self.begun = false;
+            self.pending_fault = None;
+            self.plan.clear();
+            self.boundaries.clear();
+            self.ends.clear();
+            self.open = None;
+        }
+    }
+
     /// Finish the current bead (valves closed at its end), then hold until `resume`.
     pub fn pause(&mut self) {
         self.pause_requested = true;
@@ -511,10 +595,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// cycles.
     pub fn tick(&mut self, now_us: u64, out: &mut impl Outputs) -> Result<Report<R>, Fault> {
         if let Phase::Faulted(f) = self.phase {
-            // Hold the safe state whatever happened since.
-            if self.valves_out != 0 || self.drivers_on {
-                self.safe_outputs(out);
-            }
+            // Hold the safe state every cycle, whatever else may have touched the pins.
+            self.safe_outputs(out);
             return Err(f);
         }
         if let Some(f) = self.pending_fault.take() {
@@ -823,6 +905,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.lost += self.head - seg.u_end;
         }
         self.head = seg.u_end;
+        self.ends.pop_front();
         let end = seg_end(&seg);
         self.head_pos[0] = end[0];
         self.head_pos[1] = end[1];
@@ -896,14 +979,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// Plan volume where the current bead ends, if its last segment is planned.
     fn bead_end(&self) -> Option<Vol> {
-        for item in self.plan.iter() {
-            match item {
-                Item::Seg(s) if s.last => return Some(s.u_end),
-                Item::Seg(_) => continue,
-                _ => return None,
-            }
-        }
-        None
+        self.ends.front().copied()
     }
 
     fn check_limits(&self, p: [R; 3]) -> Result<(), Fault> {
@@ -1022,6 +1098,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         if let Some(prev) = self.open.take() {
             let (seg, _) = self.finalise(prev, None);
             let _ = self.plan.push_back(Item::Seg(seg));
+            let _ = self.ends.push_back(seg.u_end);
             self.last_final = Some((seg.material, seg.u_end));
             self.known_to = Some(seg.u_end);
         }

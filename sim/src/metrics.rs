@@ -272,7 +272,7 @@ impl Meter {
         let mut runs: Vec<(f64, u8)> = Vec::new();
         for (k, &(s, m)) in trace.landed.iter().enumerate() {
             let next_s = trace.landed.get(k + 1).map(|r| r.0).unwrap_or(trace.s + trace.extra);
-            if next_s - s < SLIVER_MM && k > 0 {
+            if next_s - s < SLIVER_MM && (k > 0 || trace.landed.len() > 1) {
                 self.metrics.slivers += 1;
                 continue;
             }
@@ -283,6 +283,24 @@ impl Meter {
         }
         let materials_landed: Vec<u8> = runs.iter().map(|r| r.1).collect();
         let materials_design: Vec<u8> = design.runs.iter().map(|r| r.1).collect();
+        if materials_landed != materials_design {
+            let first = materials_landed
+                .iter()
+                .zip(&materials_design)
+                .position(|(a, b)| a != b)
+                .unwrap_or(materials_landed.len().min(materials_design.len()));
+            let lo = first.saturating_sub(2);
+            self.metrics.mismatches.push(format!(
+                "bead {bi} (commands {}..={}): {} design runs, {} landed; first difference at run {first}: design {:?}, landed {:?}",
+                design.commands.0,
+                design.commands.1,
+                materials_design.len(),
+                materials_landed.len(),
+                &design.runs[lo..(first + 3).min(design.runs.len())],
+                &runs[lo..(first + 3).min(runs.len())],
+            ));
+            return;
+        }
         if materials_landed != materials_design {
             self.metrics.mismatches.push(format!(
                 "bead {bi} (commands {}..={}): design runs {:?} at {:?}, landed {:?} at s {:?}",

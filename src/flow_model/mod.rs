@@ -16,7 +16,7 @@ use channel::{Channel, ChannelFull};
 use lines::{Line, LineParams};
 
 /// Longest stretch, in cycles, that the predictor integrates in one piece.
-pub const MAX_CHUNK: usize = 16;
+pub const MAX_CHUNK: usize = 32;
 
 /// What one control cycle did.
 #[derive(Clone, Copy, Debug, PartialEq)]
