@@ -191,6 +191,24 @@ pub struct InletConfig {
     /// First-order time constant of the line pressure decaying after the valve shuts, ms.
     #[serde(default)]
     pub pressure_decay_ms: f32,
+    /// Present when this inlet is a stepper-driven syringe instead of a pneumatic valve;
+    /// `pressure_kpa` and the valve timings are then not used.
+    #[serde(default)]
+    pub syringe: Option<SyringeConfig>,
+}
+
+/// A syringe pushed by a stepper (an E axis): volumetric flow from the plunger's step
+/// rate, arriving after a lag measured as a Weibull curve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SyringeConfig {
+    /// Plunger microsteps per mm^3 of paste pushed.
+    pub steps_per_mm3: f32,
+    /// Weibull rate k of the outflow after the plunger starts,
+    /// `M(t) = M_inf (1 - exp(-k t^n))` with t in seconds (units s^-n).
+    pub lag_k: f32,
+    /// Weibull shape n.
+    pub lag_n: f32,
 }
 
 /// Where in the config a problem is.
@@ -688,6 +706,11 @@ impl Config {
                     p
                 }
             };
+            if let Some(sy) = inlet.syringe {
+                ic.positive_max("syringe.steps_per_mm3", sy.steps_per_mm3, 1.0e6)?;
+                ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
+                ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
+            }
             let open = ic.range("valve_open_delay_ms", inlet.valve_open_delay_ms, 0.0, 2000.0)?;
             let close = ic.range("valve_close_delay_ms", inlet.valve_close_delay_ms, 0.0, 2000.0)?;
             let rise = ic.range("pressure_rise_ms", inlet.pressure_rise_ms, 0.0, 5000.0)?;
@@ -767,6 +790,7 @@ mod tests {
                     valve_close_delay_ms: 0.0,
                     pressure_rise_ms: 0.0,
                     pressure_decay_ms: 0.0,
+                    syringe: None,
                 })
                 .unwrap();
         }

@@ -22,6 +22,7 @@ fn config(mu_cur: f32, mu_nxt: f32) -> Config {
         valve_close_delay_ms: 0.0,
         pressure_rise_ms: 0.0,
         pressure_decay_ms: 0.0,
+        syringe: None,
     };
     let mut inlets = heapless::Vec::new();
     inlets.push(inlet("current", mu_cur)).unwrap();
