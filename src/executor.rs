@@ -27,11 +27,13 @@ pub const PLAN_CAPACITY: usize = 256;
 pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
 /// Cycles a late `tick` may catch up at once before it is a fault.
 pub const MAX_CATCH_UP: u64 = 4;
-/// Prediction chunks integrated per cycle and per prediction in flight.
-pub const PREDICT_BUDGET: u32 = 4;
-/// Cycles between the starts of successive predictions of one kind (1 ms at 10 kHz);
+/// Prediction chunks integrated per unit of prediction work. The two kinds of prediction
+/// (switch, stop) take turns, one unit (a restart or a chunk) each on alternate cycles, so
+/// a cycle never carries more than one.
+pub const PREDICT_BUDGET: u32 = 1;
+/// Cycles between the starts of successive predictions of one kind (2 ms at 10 kHz);
 /// in between, the last two answers are extrapolated.
-pub const PREDICT_INTERVAL: u64 = 10;
+pub const PREDICT_INTERVAL: u64 = 20;
 
 /// Why the executor went to the safe state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -167,8 +169,6 @@ pub struct Report<R> {
     pub state: RunState,
     /// Planned head position, mm.
     pub position: [R; 3],
-    /// Commanded step position per axis.
-    pub steps: [i64; 3],
     /// Valves commanded open, bit per inlet.
     pub valves: u32,
     /// Inlet feeding the channel (model), if anything flows.
@@ -185,10 +185,6 @@ pub struct Report<R> {
     pub plan_volume: Vol,
     /// Index (0-based, in push order) of the command being executed.
     pub command_index: u32,
-    /// Volume that left the nozzle off the print path so far (between beads).
-    pub lost_volume: Vol,
-    /// Cycles run since the job began.
-    pub cycle: u64,
     /// Material slugs in the channel and hanging filament (features in flight).
     pub slugs: u8,
 }
@@ -247,7 +243,8 @@ enum Phase<R> {
 #[derive(Clone, Debug)]
 struct Tracker<R, const N: usize> {
     goal: Option<Goal>,
-    running: Option<Prediction<R, N>>,
+    pred: Prediction<R, N>,
+    running: bool,
     last: Option<(u64, R)>,
     prev: Option<(u64, R)>,
 }
@@ -256,40 +253,45 @@ impl<R: Real, const N: usize> Tracker<R, N> {
     fn new() -> Self {
         Tracker {
             goal: None,
-            running: None,
+            pred: Prediction::new(),
+            running: false,
             last: None,
             prev: None,
         }
     }
+    /// Forgets everything; field by field, as moving the prediction is dearer than this.
     fn reset(&mut self) {
-        *self = Self::new();
+        self.goal = None;
+        self.running = false;
+        self.last = None;
+        self.prev = None;
     }
-    /// Keeps a prediction of `goal` running; returns the current estimate, if any.
-    fn estimate(&mut self, model: &FlowModel<R, N>, goal: Goal) -> Option<R> {
+    /// Keeps a prediction of `goal` running, doing at most one unit of work (a restart or
+    /// one chunk) if `work` allows; returns the current estimate, if any.
+    fn estimate(&mut self, model: &FlowModel<R, N>, goal: Goal, work: bool) -> Option<R> {
         if self.goal != Some(goal) {
             self.reset();
             self.goal = Some(goal);
         }
         let now = model.next_cycle();
-        if self.running.is_none()
-            && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL)
-        {
-            self.running = Some(Prediction::start(model, goal));
-        }
-        let finished = match self.running.as_mut() {
-            Some(p) => p.advance(model, PREDICT_BUDGET).map(|o| (p.start_cycle(), o)),
-            None => None,
-        };
-        if let Some((at, outcome)) = finished {
-            self.running = None;
-            match outcome {
-                Outcome::Volume(v) => {
-                    self.prev = self.last;
-                    self.last = Some((at, v));
-                }
-                Outcome::Never => {
-                    self.prev = None;
-                    self.last = None;
+        if !work {
+            // Nothing this cycle: answer from what is known.
+        } else if !self.running && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL) {
+            self.pred.restart(model, goal);
+            self.running = true;
+        } else if self.running {
+            if let Some(outcome) = self.pred.advance(model, PREDICT_BUDGET) {
+                self.running = false;
+                let at = self.pred.start_cycle();
+                match outcome {
+                    Outcome::Volume(v) => {
+                        self.prev = self.last;
+                        self.last = Some((at, v));
+                    }
+                    Outcome::Never => {
+                        self.prev = None;
+                        self.last = None;
+                    }
                 }
             }
         }
@@ -298,8 +300,8 @@ impl<R: Real, const N: usize> Tracker<R, N> {
                 // A lead changes because time passes; it cannot change faster than the
                 // flow itself, which bounds a slope taken across a jump in the state.
                 let cap = model.q() * model.dt();
-                let slope = ((v1 - v0) / R::of((t1 - t0) as f64)).max(-cap).min(cap);
-                Some((v1 + slope * R::of((now - t1) as f64)).max(R::ZERO))
+                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0))).max(-cap).min(cap);
+                Some((v1 + slope * R::from_u32(cycles32(now - t1))).max(R::ZERO))
             }
             (Some((_, v1)), _) => Some(v1),
             _ => None,
@@ -333,6 +335,7 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     switch: Tracker<R, N>,
     stop: Tracker<R, N>,
     window: Vol,
+    dt: R,
     lost: Vol,
     last_now: Option<u64>,
     cycle: u64,
@@ -376,6 +379,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             switch: Tracker::new(),
             stop: Tracker::new(),
             window,
+            dt: machine.dt(),
             lost: Vol::ZERO,
             last_now: None,
             cycle: 0,
@@ -611,7 +615,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 if el * 2 < period {
                     return Ok(self.report());
                 }
-                (el + period / 2) / period
+                // The usual case without a 64-bit division (software on the M4).
+                if el * 2 < period * 3 {
+                    1
+                } else {
+                    (el + period / 2) / period
+                }
             }
         };
         if cycles > MAX_CATCH_UP {
@@ -659,8 +668,26 @@ impl<R: Real, const N: usize> Executor<R, N> {
         Ok(self.report())
     }
 
+    /// Volume that left the nozzle off the print path so far (between beads).
+    pub fn lost_volume(&self) -> Vol {
+        self.lost
+    }
+    /// Cycles run since the job began.
+    pub fn cycle(&self) -> u64 {
+        self.cycle
+    }
+    /// Commanded step position per axis.
+    pub fn step_position(&self) -> [i64; 3] {
+        self.steps.position()
+    }
+
+    /// The state as of the last cycle, without running one.
+    pub fn report_snapshot(&self) -> Report<R> {
+        self.report()
+    }
+
     fn report(&self) -> Report<R> {
-        let dt = self.machine.dt();
+        let dt = self.dt;
         let speed = if matches!(self.phase, Phase::Print { .. }) {
             self.last_dv.mm3::<R>() / (self.machine.bead_area * dt)
         } else {
@@ -669,7 +696,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         Report {
             state: self.state(),
             position: self.head_pos,
-            steps: self.steps.position(),
             valves: self.valves_out,
             feeding: self.model.feeding(),
             landing: self.model.channel().landing(),
@@ -678,8 +704,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             speed,
             plan_volume: self.head,
             command_index: self.last_index,
-            lost_volume: self.lost,
-            cycle: self.cycle,
             slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
         }
     }
@@ -725,7 +749,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 } => {
                     self.lost += dv_left;
                     dv_left = Vol::ZERO;
-                    let t = self.machine.dt() * R::of((cycles + 1) as f64);
+                    let t = self.dt * R::from_u32(cycles32(cycles + 1));
                     let d = trap.distance(t);
                     for a in 0..3 {
                         self.head_pos[a] = from[a] + dir[a] * d;
@@ -858,14 +882,20 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// when the bead ended and the next phase should run this cycle.
     fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
         let s = self.machine.bead_area;
+        let q_stop = self.machine.q_stop;
+        let shut = self.model.commanded() == 0;
         for _ in 0..PLAN_CAPACITY {
-            let Some(Item::Seg(seg)) = self.plan.front().copied() else {
+            let Some(Item::Seg(seg)) = self.plan.front() else {
                 // Printing with no segment queued: the feeder fell behind.
                 return Err(Fault::Underrun);
             };
             self.last_index = seg.index;
-            if self.head >= seg.u_end {
+            let past = self.head >= seg.u_end;
+            // A tail that ran out short of the end: the rest is within the stop threshold.
+            let tail_done = seg.last && stopping && q <= q_stop && shut;
+            if past || tail_done {
                 if seg.last {
+                    let seg = *seg;
                     self.end_bead(seg, stopping);
                     return Ok(true);
                 }
@@ -875,17 +905,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
                 continue;
             }
-            if seg.last && stopping && q <= self.machine.q_stop && self.model.commanded() == 0 {
-                // The tail has run out short of the end: the rest is within the stop
-                // threshold; finish the bead here.
-                self.end_bead(seg, stopping);
-                return Ok(true);
-            }
             let off = (self.head - seg.u_start).mm3::<R>() / s;
             if off <= seg.len {
                 self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
                 self.head_pos[1] = seg.start[1] + seg.dir[1] * off;
-            } else if let Some(f) = seg.fillet {
+            } else if let Some(f) = &seg.fillet {
                 let p = f.point((off - seg.len).min(f.length()));
                 self.head_pos[0] = p[0];
                 self.head_pos[1] = p[1];
@@ -949,7 +973,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let due = entry >= u_b
                     || self
                         .switch
-                        .estimate(&self.model, Goal::Switch(m))
+                        .estimate(&self.model, Goal::Switch(m), self.cycle % 2 == 0)
                         .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
                 if due {
                     self.model.command(1 << m);
@@ -964,7 +988,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // End of the bead.
         if let Some(end) = self.bead_end() {
             if self.model.commanded() != 0 && self.head + self.window >= end {
-                if let Some(tail) = self.stop.estimate(&self.model, Goal::Stop) {
+                if let Some(tail) = self.stop.estimate(&self.model, Goal::Stop, self.cycle % 2 == 1) {
                     if self.head + Vol::from_mm3(tail) >= end {
                         self.model.command(0);
                         self.want = None;
@@ -1145,6 +1169,11 @@ fn seg_end<R: Real>(seg: &Seg<R>) -> V2<R> {
             seg.start[1] + seg.dir[1] * seg.len,
         ],
     }
+}
+
+/// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
+fn cycles32(c: u64) -> u32 {
+    c.min(u32::MAX as u64) as u32
 }
 
 fn um<R: Real>(v: i32) -> R {

@@ -13,6 +13,7 @@ mod fmt;
 pub mod job;
 pub mod motion;
 pub mod outputs;
+mod poly;
 pub mod real;
 pub mod rheology;
 pub mod step_gen;

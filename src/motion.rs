@@ -36,9 +36,10 @@ impl<R: Real> Fillet<R> {
         } else {
             self.start_angle - s / self.radius
         };
+        let (sin, cos) = phi.sin_cos();
         [
-            self.centre[0] + self.radius * phi.cos(),
-            self.centre[1] + self.radius * phi.sin(),
+            self.centre[0] + self.radius * cos,
+            self.centre[1] + self.radius * sin,
         ]
     }
 }

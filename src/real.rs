@@ -53,6 +53,12 @@ pub trait Real:
     fn cos(self) -> Self;
     /// Four-quadrant arctangent of self/x.
     fn atan2(self, x: Self) -> Self;
+    /// (sin, cos) of an angle in [-2 pi, 2 pi], for the per-cycle path (corner arcs).
+    /// f32 uses `poly::sin_cos` (pure f32, under 1e-6 absolute error); f64 uses libm.
+    fn sin_cos(self) -> (Self, Self);
+    /// `self^y` for `self >= 0`, for the per-cycle flow solve. f32 uses `poly::powf`
+    /// (pure f32, under 2e-6 relative error for exponents up to 1); f64 uses libm.
+    fn pow_fast(self, y: Self) -> Self;
     /// Absolute value.
     fn abs(self) -> Self;
     /// Largest integer not above.
@@ -63,6 +69,8 @@ pub trait Real:
     fn round_i64(self) -> i64;
     /// From an integer (rounds when it does not fit the mantissa).
     fn from_i64(x: i64) -> Self;
+    /// From a small unsigned integer (one instruction on an FPU).
+    fn from_u32(x: u32) -> Self;
     /// The smaller of two (the other if one is NaN).
     #[inline]
     fn min(self, o: Self) -> Self {
@@ -131,6 +139,14 @@ impl Real for f32 {
         libm::atan2f(self, x)
     }
     #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        crate::poly::sin_cos(self)
+    }
+    #[inline]
+    fn pow_fast(self, y: Self) -> Self {
+        crate::poly::powf(self, y)
+    }
+    #[inline]
     fn abs(self) -> Self {
         libm::fabsf(self)
     }
@@ -144,10 +160,35 @@ impl Real for f32 {
     }
     #[inline]
     fn round_i64(self) -> i64 {
-        libm::roundf(self) as i64
+        // The M4F converts f32 <-> i32 in one instruction but i64 only in software: take
+        // the i32 path whenever the value fits (every per-cycle volume and step does).
+        if self.abs() < 2.0e9 {
+            let t = self as i32;
+            let r = self - t as f32;
+            let t = if r >= 0.5 {
+                t + 1
+            } else if r <= -0.5 {
+                t - 1
+            } else {
+                t
+            };
+            t as i64
+        } else {
+            libm::roundf(self) as i64
+        }
     }
     #[inline]
     fn from_i64(x: i64) -> Self {
+        if x >= i32::MIN as i64 && x <= i32::MAX as i64 {
+            x as i32 as f32
+        } else {
+            // High and low words apart: two one-instruction conversions, at most one ulp
+            // off the correctly rounded value.
+            ((x >> 32) as i32 as f32) * 4_294_967_296.0 + (x as u32) as f32
+        }
+    }
+    #[inline]
+    fn from_u32(x: u32) -> Self {
         x as f32
     }
 }
@@ -200,6 +241,14 @@ impl Real for f64 {
         libm::atan2(self, x)
     }
     #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        (libm::sin(self), libm::cos(self))
+    }
+    #[inline]
+    fn pow_fast(self, y: Self) -> Self {
+        libm::pow(self, y)
+    }
+    #[inline]
     fn abs(self) -> Self {
         libm::fabs(self)
     }
@@ -218,5 +267,32 @@ impl Real for f64 {
     #[inline]
     fn from_i64(x: i64) -> Self {
         x as f64
+    }
+    #[inline]
+    fn from_u32(x: u32) -> Self {
+        x as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_f32_conversions_match_the_exact_ones() {
+        for &x in &[0.0f32, 0.49999997, 0.5, -0.5, 1.5, -2.5, 1e7 + 0.5, 3.0e9, -3.0e9, 1.7e18, f32::NAN] {
+            let want = if x.is_nan() { 0 } else { libm::roundf(x) as i64 };
+            assert_eq!(x.round_i64(), want, "{x}");
+        }
+        let mut v = 1i64;
+        for _ in 0..62 {
+            for &x in &[v, -v, v + 12345, v * 3 - 1] {
+                let fast = f32::from_i64(x) as f64;
+                let exact = x as f64;
+                let ulp = (exact.abs() as f32).max(1.0) as f64 * f32::EPSILON as f64;
+                assert!((fast - exact).abs() <= ulp, "{x}: {fast} vs {exact}");
+            }
+            v *= 2;
+        }
     }
 }

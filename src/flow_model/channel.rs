@@ -147,6 +147,25 @@ impl<const N: usize> Channel<N> {
         if dv.0 <= 0 {
             return 0;
         }
+        // Fast path, nearly every cycle: no slug start crossed at the exit or the plate.
+        let exit = self.entered - self.v_channel;
+        let land_to = self.entered + dv - self.v_transit;
+        let exit_clear = self.slug(self.exit_idx + 1).is_none_or(|s| s.start > exit + dv);
+        let land_clear = self.slug(1).is_none_or(|s| s.start > land_to);
+        if exit_clear && land_clear {
+            let newest = self.newest() as usize;
+            let here = self.slug(self.exit_idx).map(|s| s.material as usize).unwrap_or(0);
+            if newest != here {
+                if let Some(v) = self.in_channel.get_mut(newest) {
+                    *v += dv;
+                }
+                if let Some(v) = self.in_channel.get_mut(here) {
+                    *v -= dv;
+                }
+            }
+            self.entered += dv;
+            return 0;
+        }
         let newest = self.newest() as usize;
         if let Some(v) = self.in_channel.get_mut(newest) {
             *v += dv;

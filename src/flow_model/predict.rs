@@ -4,7 +4,7 @@
 //! of up to `MAX_CHUNK` cycles, and is resumable so each control cycle spends a bounded
 //! budget on it. Deciding when to act on the answer is the executor's job.
 
-use super::lines::Line;
+use super::lines::{Line, LineParams, PENDING_CAP};
 use super::{solve, FlowModel, MAX_CHUNK};
 use crate::real::Real;
 
@@ -31,11 +31,80 @@ const EXITS: usize = 6;
 /// Horizon, in cycles, after which a prediction gives up (5 s at 10 kHz).
 const HORIZON_CYCLES: u64 = 50_000;
 
+/// A line as the prediction follows it: plain arrays, cheap to step on the M4.
+#[derive(Clone, Copy, Debug)]
+struct PLine<R> {
+    p: R,
+    open: bool,
+    /// Pending (cycle, open) changes; `ev[next..len]` are still to act.
+    ev: [(u64, bool); PENDING_CAP],
+    len: u8,
+    next: u8,
+}
+
+impl<R: Real> PLine<R> {
+    fn idle() -> Self {
+        PLine {
+            p: R::ZERO,
+            open: false,
+            ev: [(0, false); PENDING_CAP],
+            len: 0,
+            next: 0,
+        }
+    }
+    /// The line `l` with `open` commanded before cycle `next`, by the same rule as
+    /// `Line::command` (a command that acts sooner supersedes later pending ones), without
+    /// copying the line's queue first.
+    fn commanded(l: &Line<R>, open: bool, next: u64, params: &LineParams<R>) -> Self {
+        let mut out = PLine::idle();
+        out.p = l.p;
+        out.open = l.open;
+        let at = next + if open { params.open_delay } else { params.close_delay } as u64;
+        let change = open != l.commanded;
+        for &e in l.pending.iter() {
+            if change && e.0 >= at {
+                break;
+            }
+            out.ev[out.len as usize] = e;
+            out.len += 1;
+        }
+        if change {
+            if out.len as usize == PENDING_CAP {
+                out.ev.copy_within(1.., 0);
+                out.len -= 1;
+            }
+            out.ev[out.len as usize] = (at, open);
+            out.len += 1;
+        }
+        out
+    }
+    /// Acts on changes due by cycle `k`; returns the cycle of the next one still pending.
+    #[inline]
+    fn apply_due(&mut self, k: u64) -> Option<u64> {
+        while self.next < self.len {
+            let (t, open) = self.ev[self.next as usize];
+            if t > k {
+                return Some(t);
+            }
+            self.open = open;
+            self.next += 1;
+        }
+        None
+    }
+    #[inline]
+    fn pending_open(&self) -> bool {
+        self.ev[self.next as usize..self.len as usize]
+            .iter()
+            .any(|e| e.1)
+    }
+}
+
 /// A prediction in progress.
 #[derive(Clone, Debug)]
 pub struct Prediction<R, const N: usize> {
     goal: Goal,
-    lines: heapless::Vec<Line<R>, N>,
+    lines: [PLine<R>; N],
+    n_lines: usize,
     vin: [R; N],
     exits: [(R, u8); EXITS],
     n_exits: usize,
@@ -49,43 +118,75 @@ pub struct Prediction<R, const N: usize> {
     p_scale: R,
 }
 
+impl<R: Real, const N: usize> Default for Prediction<R, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl<R: Real, const N: usize> Prediction<R, N> {
-    /// Starts predicting `goal` as if commanded before the model's next cycle.
-    pub fn start(model: &FlowModel<R, N>, goal: Goal) -> Self {
-        let mut lines: heapless::Vec<Line<R>, N> = heapless::Vec::new();
+    /// An idle prediction (no goal yet); `restart` sets it going.
+    pub fn new() -> Self {
+        Prediction {
+            goal: Goal::Stop,
+            lines: [PLine::idle(); N],
+            n_lines: 0,
+            vin: [R::ZERO; N],
+            exits: [(R::ZERO, 0u8); EXITS],
+            n_exits: 0,
+            exit_next: 0,
+            exit_material: 0,
+            exit_pos: R::ZERO,
+            start: 0,
+            k: 0,
+            vol: R::ZERO,
+            q: R::ZERO,
+            p_scale: R::ZERO,
+        }
+    }
+
+    /// Starts predicting `goal` as if commanded before the model's next cycle. Works in
+    /// place: on the M4 moving a whole prediction costs more than computing one chunk.
+    pub fn restart(&mut self, model: &FlowModel<R, N>, goal: Goal) {
         let mask = match goal {
             Goal::Switch(to) => 1u32 << to,
             Goal::Stop => 0,
         };
         let next = model.next_cycle();
         let mut p_scale = R::ZERO;
-        for (i, (l, p)) in model.lines().iter().zip(model.params()).enumerate() {
-            let mut c = l.clone();
-            c.command(mask & (1 << i) != 0, next, p);
-            p_scale = p_scale.max(p.supply).max(l.p);
-            let _ = lines.push(c);
+        self.n_lines = model.lines().len().min(N);
+        for (i, ((dst, src), p)) in self
+            .lines
+            .iter_mut()
+            .zip(model.lines())
+            .zip(model.params())
+            .enumerate()
+        {
+            *dst = PLine::commanded(src, mask & (1 << i) != 0, next, p);
+            p_scale = p_scale.max(p.supply).max(src.p);
         }
         let mut raw = [(crate::vol::Vol::ZERO, 0u8); EXITS];
-        let n_exits = model.channel().exit_changes(&mut raw);
-        let mut exits = [(R::ZERO, 0u8); EXITS];
-        for (e, r) in exits.iter_mut().zip(raw.iter()).take(n_exits) {
+        self.n_exits = model.channel().exit_changes(&mut raw);
+        for (e, r) in self.exits.iter_mut().zip(raw.iter()).take(self.n_exits) {
             *e = (r.0.mm3(), r.1);
         }
-        Prediction {
-            goal,
-            lines,
-            vin: model.vin(),
-            exits,
-            n_exits,
-            exit_next: 0,
-            exit_material: model.channel().at_exit(),
-            exit_pos: R::ZERO,
-            start: next,
-            k: next,
-            vol: R::ZERO,
-            q: model.q(),
-            p_scale,
-        }
+        self.goal = goal;
+        self.vin = model.vin();
+        self.exit_next = 0;
+        self.exit_material = model.channel().at_exit();
+        self.exit_pos = R::ZERO;
+        self.start = next;
+        self.k = next;
+        self.vol = R::ZERO;
+        self.q = model.q();
+        self.p_scale = p_scale;
+    }
+
+    /// Starts predicting `goal` (see `restart`).
+    pub fn start(model: &FlowModel<R, N>, goal: Goal) -> Self {
+        let mut p = Self::new();
+        p.restart(model, goal);
+        p
     }
 
     /// What this prediction is for.
@@ -102,6 +203,11 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         let params = model.params();
         let powers = model.powers();
         let dt = model.dt();
+        let n = self.n_lines;
+        let to = match self.goal {
+            Goal::Switch(t) => t as usize,
+            Goal::Stop => usize::MAX,
+        };
         for _ in 0..budget {
             if self.k - self.start > HORIZON_CYCLES {
                 return Some(Outcome::Never);
@@ -109,40 +215,66 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             // Changes act at chunk starts: end the chunk before the next pending one.
             let mut j = MAX_CHUNK as u64;
             let mut any_open = false;
-            for l in self.lines.iter_mut() {
-                l.apply_due(self.k);
-                if let Some(&(t, _)) = l.pending.front() {
+            // The goal's lead is for good once its valve acts open and every other acts
+            // closed with nothing pending: its line then only rises, the others only fall.
+            // Before that an old switch still in its dead time may flip the junction once
+            // more (A -> B -> A within a few dead times).
+            let mut settled = true;
+            let (mut lead, mut other) = (R::ZERO, R::ZERO);
+            for (i, l) in self.lines[..n].iter_mut().enumerate() {
+                if let Some(t) = l.apply_due(self.k) {
                     j = j.min(t - self.k);
                 }
-                any_open |= l.open || l.pending.iter().any(|&(_, o)| o);
+                let pending_open = l.pending_open();
+                any_open |= l.open || pending_open;
+                if i == to {
+                    settled &= l.open && l.next == l.len;
+                    lead = l.p;
+                } else {
+                    settled &= !l.open && !pending_open;
+                    other = other.max(l.p);
+                }
             }
             let j = j.max(1) as usize;
-            // Where the goal's line already leads right after the changes, and nothing can
-            // overtake it any more, it feeds from now on.
-            if let Goal::Switch(to) = self.goal {
-                let (lead, other) = self.lead_margin(to as usize, params, true);
-                if lead > R::ZERO && lead >= other && self.settled(to as usize) {
+            if to != usize::MAX && settled {
+                // Right after the changes acted (instant lines jump to their target).
+                let now = |l: &PLine<R>, i: usize| {
+                    let (g, tau, _) = params[i].drive(l.open);
+                    if tau <= R::ZERO {
+                        g
+                    } else {
+                        l.p
+                    }
+                };
+                let mut o = R::ZERO;
+                for (i, l) in self.lines[..n].iter().enumerate() {
+                    if i != to {
+                        o = o.max(now(l, i));
+                    }
+                }
+                let g = now(&self.lines[to], to);
+                if g > R::ZERO && g >= o {
                     return Some(Outcome::Volume(self.vol));
                 }
             }
-            let start_margin = match self.goal {
-                Goal::Switch(to) => {
-                    let (lead, other) = self.lead_margin(to as usize, params, false);
-                    other - lead
-                }
-                Goal::Stop => R::ZERO,
-            };
+            let start_margin = other - lead;
             // Integrate every line over j cycles.
-            let span = dt * R::of(j as f64);
+            let span = dt * R::from_u32(j as u32);
             let mut best: Option<(usize, R)> = None;
             let mut p_max = R::ZERO;
-            for (i, l) in self.lines.iter_mut().enumerate() {
+            let (mut lead, mut other) = (R::ZERO, R::ZERO);
+            for (i, l) in self.lines[..n].iter_mut().enumerate() {
                 let (g, tau, _) = params[i].drive(l.open);
                 let decay = powers[i][if l.open { 0 } else { 1 }][j];
                 let gap = l.p - g;
                 let imp = g * span + gap * tau * (R::ONE - decay);
                 l.p = g + gap * decay;
                 p_max = p_max.max(l.p);
+                if i == to {
+                    lead = l.p;
+                } else {
+                    other = other.max(l.p);
+                }
                 if imp > R::ZERO && best.is_none_or(|(_, b)| imp > b) {
                     best = Some((i, imp));
                 }
@@ -152,10 +284,9 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 None => R::ZERO,
             };
             self.k += j as u64;
-            if let Goal::Switch(to) = self.goal {
-                let (lead, other) = self.lead_margin(to as usize, params, false);
+            if to != usize::MAX {
                 let end_margin = other - lead;
-                if end_margin <= R::ZERO && lead > R::ZERO && self.settled(to as usize) {
+                if end_margin <= R::ZERO && lead > R::ZERO && settled {
                     // Crossed inside the chunk: interpolate the pressure difference.
                     let f = if start_margin > end_margin {
                         (start_margin / (start_margin - end_margin)).min(R::ONE).max(R::ZERO)
@@ -170,47 +301,17 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             }
             self.q = dv / span;
             self.vol += dv;
-            if self.goal == Goal::Stop && !any_open && p_max <= self.p_scale * R::of(0.01) {
-                // What is left decays like the line: about q * tau more.
+            if to == usize::MAX && !any_open && p_max <= self.p_scale * R::of(0.05) {
+                // What is left decays with the line: p ~ e^(-t/tau) gives Q ~ e^(-t/(n tau))
+                // through a power-law channel, so about q n tau more.
                 let tail = match best {
-                    Some((f, _)) => dv / span * params[f].tau_decay,
+                    Some((f, _)) => dv / span * params[f].tau_decay * model.laws()[f].n,
                     None => R::ZERO,
                 };
                 return Some(Outcome::Volume(self.vol + tail));
             }
         }
         None
-    }
-
-    /// True once the goal's valve acts open and every other one acts closed with nothing
-    /// pending: the goal's line then only rises and the others only fall, so a lead it
-    /// takes is for good. Before that, an old switch still in its dead time may flip the
-    /// junction once more (A -> B -> A within a few dead times).
-    fn settled(&self, to: usize) -> bool {
-        self.lines.iter().enumerate().all(|(i, l)| {
-            let pending_open = l.pending.iter().any(|&(_, o)| o);
-            if i == to {
-                l.open && l.pending.is_empty()
-            } else {
-                !l.open && !pending_open
-            }
-        })
-    }
-
-    /// (goal line's pressure, highest other line's pressure); `instant` gives the values
-    /// right after this cycle's changes acted (instant lines jump).
-    fn lead_margin(&self, to: usize, params: &[super::lines::LineParams<R>], instant: bool) -> (R, R) {
-        let mut lead = R::ZERO;
-        let mut other = R::ZERO;
-        for (i, l) in self.lines.iter().enumerate() {
-            let p = if instant { l.p_now(&params[i]) } else { l.p };
-            if i == to {
-                lead = p;
-            } else {
-                other = other.max(p);
-            }
-        }
-        (lead, other)
     }
 
     /// Volume through the channel over a chunk with pressure impulse `imp`.
@@ -222,10 +323,16 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 r0 += law.a * v;
             }
             let k = laws[feeding].a - laws[self.exit_material as usize].a;
-            let disc = (r0 * r0 + R::TWO * k * imp).max(R::ZERO);
-            R::TWO * imp / (r0 + disc.sqrt())
+            super::volume_for_impulse(r0, k, imp)
         } else {
-            solve::flow(laws, &self.vin, imp / span, self.q) * span
+            solve::flow_within(
+                laws,
+                &self.vin,
+                imp / span,
+                self.q,
+                R::of(solve::PREDICT_TOLERANCE),
+                solve::CYCLE_ITERATIONS,
+            ) * span
         }
     }
 

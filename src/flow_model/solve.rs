@@ -21,6 +21,30 @@ pub fn tolerance<R: Real>() -> R {
 /// steps from below the root stay below it and converge monotonically; a step that leaves
 /// the bracket is replaced by bisection.
 pub fn flow<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, guess: R) -> R {
+    flow_within(laws, vin, p, guess, tolerance::<R>(), MAX_ITERATIONS)
+}
+
+/// Iterations per control cycle for the executor's per-cycle solve: from last cycle's flow
+/// (a relative change of about 1e-3) one Newton step leaves about 1e-6, two reach the
+/// tolerance; after a jump (a valve opening from rest) the bound stops the work for this
+/// cycle and the next cycle, warm-started from here, continues.
+pub const CYCLE_ITERATIONS: u32 = 3;
+/// Relative tolerance of the per-cycle solve: far below the 1 % the bead section is held
+/// to, and above f32's rounding noise.
+pub const CYCLE_TOLERANCE: f64 = 1e-5;
+/// Relative tolerance of the look-ahead's solves, whose answers steer valve timing to
+/// within a few percent of a lead volume.
+pub const PREDICT_TOLERANCE: f64 = 1e-3;
+
+/// `flow` with a given relative tolerance and iteration bound.
+pub fn flow_within<R: Real>(
+    laws: &[FlowLaw<R>],
+    vin: &[R],
+    p: R,
+    guess: R,
+    tol: R,
+    max_iterations: u32,
+) -> R {
     let mut yield_sum = R::ZERO;
     let mut lin = R::ZERO;
     let mut nonlinear = false;
@@ -48,8 +72,7 @@ pub fn flow<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, guess: R) -> R {
     } else {
         cold_guess(laws, vin, target)
     };
-    let tol = tolerance::<R>();
-    for _ in 0..MAX_ITERATIONS {
+    for _ in 0..max_iterations {
         let mut g = -target;
         let mut dg = R::ZERO;
         for (law, &v) in laws.iter().zip(vin) {
@@ -58,7 +81,7 @@ pub fn flow<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, guess: R) -> R {
                     g += v * law.a * q;
                     dg += v * law.a;
                 } else {
-                    let t = v * law.a * q.powf(law.n);
+                    let t = v * law.a * q.pow_fast(law.n);
                     g += t;
                     dg += law.n * t / q;
                 }
@@ -72,17 +95,21 @@ pub fn flow<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, guess: R) -> R {
         } else {
             lo = lo.max(q);
         }
-        let mut next = if dg > R::ZERO { q - g / dg } else { q * R::TWO };
-        let inside = next > lo && hi.is_none_or(|h| next < h);
-        if !inside || !next.is_finite() {
-            next = match hi {
+        let newton = if dg > R::ZERO { q - g / dg } else { q * R::TWO };
+        // Converged: the Newton step is below the tolerance (checked before the bracket,
+        // which a step this small may touch without leaving).
+        if newton.is_finite() && (newton - q).abs() <= tol * newton {
+            return newton;
+        }
+        let inside = newton > lo && hi.is_none_or(|h| newton < h);
+        let next = if inside && newton.is_finite() {
+            newton
+        } else {
+            match hi {
                 Some(h) => (lo + h) * R::HALF,
                 None => q * R::TWO,
-            };
-        }
-        if (next - q).abs() <= tol * next {
-            return next;
-        }
+            }
+        };
         q = next;
     }
     q
@@ -101,7 +128,7 @@ fn cold_guess<R: Real>(laws: &[FlowLaw<R>], vin: &[R], target: R) -> R {
     let mut q = R::ZERO;
     for (law, &v) in laws.iter().zip(vin) {
         if v > R::ZERO {
-            let full = (target / (total * law.a)).powf(R::ONE / law.n);
+            let full = (target / (total * law.a)).pow_fast(R::ONE / law.n);
             q += full * (v / total);
         }
     }
