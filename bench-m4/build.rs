@@ -16,11 +16,18 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed=build.rs");
     let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("..");
-    for (name, file) in [("valves", "seed-paper-valves.toml"), ("pastes", "food-pastes.toml")] {
+    for (name, file) in [
+        ("valves", "seed-paper-valves.toml"),
+        ("pastes", "food-pastes.toml"),
+    ] {
         let path = root.join("configs").join(file);
         println!("cargo:rerun-if-changed={}", path.display());
         let cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        std::fs::write(out.join(format!("{name}.config")), postcard::to_allocvec(&cfg).unwrap()).unwrap();
+        std::fs::write(
+            out.join(format!("{name}.config")),
+            postcard::to_allocvec(&cfg).unwrap(),
+        )
+        .unwrap();
     }
     // Chessboard of 1 mm squares, 2 layers: a switch every millimetre, two corners a row.
     let fill = Fill {

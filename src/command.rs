@@ -81,13 +81,19 @@ impl core::fmt::Display for CommandError {
                 "print segment uses material {material} but the machine has {inlets} inlet(s)"
             ),
             CommandError::DwellTooLong { ms } => {
-                write!(f, "dwell of {ms} ms is longer than the 1 h the executor accepts")
+                write!(
+                    f,
+                    "dwell of {ms} ms is longer than the 1 h the executor accepts"
+                )
             }
             CommandError::SegmentTooLong => {
                 write!(f, "print segment longer than 10 m (corrupt job?)")
             }
             CommandError::PrintBeforeStart => {
-                write!(f, "print segment before any travel move set the start point")
+                write!(
+                    f,
+                    "print segment before any travel move set the start point"
+                )
             }
             CommandError::AfterEnd => write!(f, "command after the end of the job"),
         }

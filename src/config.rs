@@ -566,15 +566,20 @@ impl Config {
         for a in 0..3 {
             let spm =
                 axis_check("motion", a).positive_max("steps_per_mm", m.steps_per_mm[a], 1.0e5)?;
-            let lo = axis_check("motion", a).range("travel_min_mm", m.travel_min_mm[a], -1e4, 1e4)?;
-            let hi = axis_check("motion", a).range("travel_max_mm", m.travel_max_mm[a], -1e4, 1e4)?;
+            let lo =
+                axis_check("motion", a).range("travel_min_mm", m.travel_min_mm[a], -1e4, 1e4)?;
+            let hi =
+                axis_check("motion", a).range("travel_max_mm", m.travel_max_mm[a], -1e4, 1e4)?;
             if lo >= hi {
                 return Err(axis_check("motion", a).err("travel_max_mm", Problem::EmptyTravel));
             }
             let vmax =
                 axis_check("motion", a).positive_max("max_speed_mm_s", m.max_speed_mm_s[a], 5e3)?;
-            let amax =
-                axis_check("motion", a).positive_max("max_accel_mm_s2", m.max_accel_mm_s2[a], 1e6)?;
+            let amax = axis_check("motion", a).positive_max(
+                "max_accel_mm_s2",
+                m.max_accel_mm_s2[a],
+                1e6,
+            )?;
             let needed = vmax as f64 * spm as f64;
             if needed > allowed_rate {
                 return Err(axis_check("motion", a).err(
@@ -652,7 +657,11 @@ impl Config {
                     consistency_pa_sn,
                     flow_index,
                 } => {
-                    ic.positive_max("rheology.power_law.consistency_pa_sn", consistency_pa_sn, 1e7)?;
+                    ic.positive_max(
+                        "rheology.power_law.consistency_pa_sn",
+                        consistency_pa_sn,
+                        1e7,
+                    )?;
                     ic.range("rheology.power_law.flow_index", flow_index, 0.1, 1.0)?;
                 }
                 Rheology::HerschelBulkley {
@@ -711,8 +720,18 @@ impl Config {
                 ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
                 ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
             }
-            let open = ic.range("valve_open_delay_ms", inlet.valve_open_delay_ms, 0.0, 2000.0)?;
-            let close = ic.range("valve_close_delay_ms", inlet.valve_close_delay_ms, 0.0, 2000.0)?;
+            let open = ic.range(
+                "valve_open_delay_ms",
+                inlet.valve_open_delay_ms,
+                0.0,
+                2000.0,
+            )?;
+            let close = ic.range(
+                "valve_close_delay_ms",
+                inlet.valve_close_delay_ms,
+                0.0,
+                2000.0,
+            )?;
             let rise = ic.range("pressure_rise_ms", inlet.pressure_rise_ms, 0.0, 5000.0)?;
             let decay = ic.range("pressure_decay_ms", inlet.pressure_decay_ms, 0.0, 5000.0)?;
             let _ = supplies.push(supply_pa);
@@ -834,17 +853,33 @@ mod tests {
 
     #[test]
     fn each_bad_value_names_its_field() {
-        let cases: [(fn(&mut Config), &str); 8] = [
-            (|c| c.channel.nozzle_diameter_mm = 0.0, "channel.nozzle_diameter_mm"),
-            (|c| c.channel.channel_length_mm = f32::NAN, "channel.channel_length_mm"),
-            (|c| c.inlets[1].pressure_kpa = Pressure::Kpa(-3.0), "inlet[1].pressure_kpa"),
+        type Edit = fn(&mut Config);
+        let cases: [(Edit, &str); 8] = [
+            (
+                |c| c.channel.nozzle_diameter_mm = 0.0,
+                "channel.nozzle_diameter_mm",
+            ),
+            (
+                |c| c.channel.channel_length_mm = f32::NAN,
+                "channel.channel_length_mm",
+            ),
+            (
+                |c| c.inlets[1].pressure_kpa = Pressure::Kpa(-3.0),
+                "inlet[1].pressure_kpa",
+            ),
             (
                 |c| c.motion.travel_max_mm[2] = -1.0,
                 "motion.travel_max_mm[2]",
             ),
-            (|c| c.motion.print_speed_max_mm_s = 5.0, "motion.print_speed_mm_s"),
+            (
+                |c| c.motion.print_speed_max_mm_s = 5.0,
+                "motion.print_speed_mm_s",
+            ),
             (|c| c.control.rate_hz = 7000, "control.rate_hz"),
-            (|c| c.inlets[0].valve_open_delay_ms = -1.0, "inlet[0].valve_open_delay_ms"),
+            (
+                |c| c.inlets[0].valve_open_delay_ms = -1.0,
+                "inlet[0].valve_open_delay_ms",
+            ),
             (
                 |c| c.motion.max_speed_mm_s[0] = 1000.0,
                 "motion.max_speed_mm_s[0]",
@@ -863,10 +898,7 @@ mod tests {
     fn more_inlets_than_the_build_supports_are_refused() {
         let c = seed();
         let e = c.validate::<f32, 1>().unwrap_err();
-        assert_eq!(
-            e.problem,
-            Problem::TooManyInlets { got: 2, max: 1 }
-        );
+        assert_eq!(e.problem, Problem::TooManyInlets { got: 2, max: 1 });
     }
 
     #[test]
@@ -874,6 +906,16 @@ mod tests {
         let mut c = seed();
         c.inlets[1].pressure_kpa = Pressure::Kpa(50.0);
         let e = c.validate::<f32, 4>().unwrap_err();
-        assert!(matches!(e.problem, Problem::FlowTooFast { inlet: 1, through: 0, .. }), "{e}");
+        assert!(
+            matches!(
+                e.problem,
+                Problem::FlowTooFast {
+                    inlet: 1,
+                    through: 0,
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 }

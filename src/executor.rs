@@ -229,10 +229,21 @@ struct Open<R> {
 #[derive(Clone, Copy, Debug)]
 enum Phase<R> {
     Idle,
-    Print { stopping: bool },
-    Settle { cycles: u64 },
-    Travel { from: [R; 3], dir: [R; 3], trap: Trapezoid<R>, cycles: u64 },
-    Dwell { left: u64 },
+    Print {
+        stopping: bool,
+    },
+    Settle {
+        cycles: u64,
+    },
+    Travel {
+        from: [R; 3],
+        dir: [R; 3],
+        trap: Trapezoid<R>,
+        cycles: u64,
+    },
+    Dwell {
+        left: u64,
+    },
     Paused,
     Done,
     Aborted,
@@ -300,7 +311,9 @@ impl<R: Real, const N: usize> Tracker<R, N> {
                 // A lead changes because time passes; it cannot change faster than the
                 // flow itself, which bounds a slope taken across a jump in the state.
                 let cap = model.q() * model.dt();
-                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0))).max(-cap).min(cap);
+                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0)))
+                    .max(-cap)
+                    .min(cap);
                 Some((v1 + slope * R::from_u32(cycles32(now - t1))).max(R::ZERO))
             }
             (Some((_, v1)), _) => Some(v1),
@@ -336,6 +349,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     stop: Tracker<R, N>,
     window: Vol,
     dt: R,
+    /// 1 / bead section.
+    inv_s: R,
     lost: Vol,
     last_now: Option<u64>,
     cycle: u64,
@@ -380,6 +395,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             stop: Tracker::new(),
             window,
             dt: machine.dt(),
+            inv_s: R::ONE / machine.bead_area,
             lost: Vol::ZERO,
             last_now: None,
             cycle: 0,
@@ -505,7 +521,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Loads a new machine config between jobs. An invalid config is a fault: the
     /// executor goes to the safe state, because the machine it was told about is wrong.
     /// While a job runs the config is refused and nothing changes.
-    pub fn load_config(&mut self, config: &Config, out: &mut impl Outputs) -> Result<(), LoadError> {
+    pub fn load_config(
+        &mut self,
+        config: &Config,
+        out: &mut impl Outputs,
+    ) -> Result<(), LoadError> {
         match config.validate::<R, N>() {
             Err(e) => {
                 self.safe_state(Fault::InvalidConfig, out);
@@ -536,7 +556,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 | Phase::Travel { .. }
                 | Phase::Dwell { .. }
                 | Phase::Paused
-        ) || (self.begun && !self.plan.is_empty() && !matches!(self.phase, Phase::Done | Phase::Aborted | Phase::Faulted(_)))
+        ) || (self.begun
+            && !self.plan.is_empty()
+            && !matches!(self.phase, Phase::Done | Phase::Aborted | Phase::Faulted(_)))
     }
 
     /// Acknowledges a fault or an abort: back to idle with no job, outputs still safe
@@ -687,9 +709,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     fn report(&self) -> Report<R> {
-        let dt = self.dt;
         let speed = if matches!(self.phase, Phase::Print { .. }) {
-            self.last_dv.mm3::<R>() / (self.machine.bead_area * dt)
+            self.last_dv.mm3::<R>() * self.inv_s * self.model.inv_dt()
         } else {
             R::ZERO
         };
@@ -881,7 +902,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Moves the head to plan volume `self.head` along the current bead. Returns true
     /// when the bead ended and the next phase should run this cycle.
     fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
-        let s = self.machine.bead_area;
+        let inv_s = self.inv_s;
         let q_stop = self.machine.q_stop;
         let shut = self.model.commanded() == 0;
         for _ in 0..PLAN_CAPACITY {
@@ -905,7 +926,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
                 continue;
             }
-            let off = (self.head - seg.u_start).mm3::<R>() / s;
+            let off = (self.head - seg.u_start).mm3::<R>() * inv_s;
             if off <= seg.len {
                 self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
                 self.head_pos[1] = seg.start[1] + seg.dir[1] * off;
@@ -988,7 +1009,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // End of the bead.
         if let Some(end) = self.bead_end() {
             if self.model.commanded() != 0 && self.head + self.window >= end {
-                if let Some(tail) = self.stop.estimate(&self.model, Goal::Stop, self.cycle % 2 == 1) {
+                if let Some(tail) = self
+                    .stop
+                    .estimate(&self.model, Goal::Stop, self.cycle % 2 == 1)
+                {
                     if self.head + Vol::from_mm3(tail) >= end {
                         self.model.command(0);
                         self.want = None;
@@ -1140,9 +1164,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
         });
         let t_end = f.map(|f| f.tangent).unwrap_or(R::ZERO);
         let len = (o.length - o.t_start - t_end).max(R::ZERO);
-        let start = [o.from[0] + o.dir[0] * o.t_start, o.from[1] + o.dir[1] * o.t_start];
+        let start = [
+            o.from[0] + o.dir[0] * o.t_start,
+            o.from[1] + o.dir[1] * o.t_start,
+        ];
         let u_arc = o.u_start + Vol::from_mm3(len * s);
-        let u_end = u_arc + f.map(|f| Vol::from_mm3(f.length() * s)).unwrap_or(Vol::ZERO);
+        let u_end = u_arc
+            + f.map(|f| Vol::from_mm3(f.length() * s))
+                .unwrap_or(Vol::ZERO);
         (
             Seg {
                 material: o.material,

@@ -178,7 +178,12 @@ pub fn decode_preamble(bytes: &[u8]) -> Result<(JobHeader, usize), JobError> {
         return Err(JobError::TruncatedHeader);
     }
     let h = &bytes[6..6 + len];
-    let crc = u32::from_le_bytes([bytes[6 + len], bytes[7 + len], bytes[8 + len], bytes[9 + len]]);
+    let crc = u32::from_le_bytes([
+        bytes[6 + len],
+        bytes[7 + len],
+        bytes[8 + len],
+        bytes[9 + len],
+    ]);
     if CRC.checksum(h) != crc {
         return Err(JobError::HeaderCrc);
     }
@@ -339,11 +344,31 @@ mod tests {
 
     fn sample() -> (JobHeader, Vec<u8>, Vec<Command>) {
         let cmds = vec![
-            Command::Travel { x: 10_000, y: 10_000, z: 600 },
-            Command::Print { dx: 5000, dy: 0, material: 0 },
-            Command::Print { dx: 3000, dy: 0, material: 1 },
-            Command::Print { dx: 0, dy: 800, material: 1 },
-            Command::Print { dx: -8000, dy: 0, material: 0 },
+            Command::Travel {
+                x: 10_000,
+                y: 10_000,
+                z: 600,
+            },
+            Command::Print {
+                dx: 5000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 3000,
+                dy: 0,
+                material: 1,
+            },
+            Command::Print {
+                dx: 0,
+                dy: 800,
+                material: 1,
+            },
+            Command::Print {
+                dx: -8000,
+                dy: 0,
+                material: 0,
+            },
             Command::Layer { z: 1200 },
             Command::Dwell { ms: 250 },
             Command::End,

@@ -74,7 +74,11 @@ pub fn fillet<R: Real>(
     }
     let left = cross > R::ZERO;
     // Normal towards the inside of the turn.
-    let n = if left { [-u1[1], u1[0]] } else { [u1[1], -u1[0]] };
+    let n = if left {
+        [-u1[1], u1[0]]
+    } else {
+        [u1[1], -u1[0]]
+    };
     let p1 = [vertex[0] - u1[0] * t, vertex[1] - u1[1] * t];
     let centre = [p1[0] + n[0] * r, p1[1] + n[1] * r];
     let start_angle = (p1[1] - centre[1]).atan2(p1[0] - centre[0]);

@@ -66,7 +66,11 @@ impl Outputs for RecordingOutputs {
             }
             self.forward[a] = forward;
         }
-        self.position[a] += if forward { count as i64 } else { -(count as i64) };
+        self.position[a] += if forward {
+            count as i64
+        } else {
+            -(count as i64)
+        };
         self.pulses[a] += count as u64;
         self.max_per_cycle[a] = self.max_per_cycle[a].max(count);
     }

@@ -280,8 +280,24 @@ mod tests {
 
     #[test]
     fn fast_f32_conversions_match_the_exact_ones() {
-        for &x in &[0.0f32, 0.49999997, 0.5, -0.5, 1.5, -2.5, 1e7 + 0.5, 3.0e9, -3.0e9, 1.7e18, f32::NAN] {
-            let want = if x.is_nan() { 0 } else { libm::roundf(x) as i64 };
+        for &x in &[
+            0.0f32,
+            0.49999997,
+            0.5,
+            -0.5,
+            1.5,
+            -2.5,
+            1e7 + 0.5,
+            3.0e9,
+            -3.0e9,
+            1.7e18,
+            f32::NAN,
+        ] {
+            let want = if x.is_nan() {
+                0
+            } else {
+                libm::roundf(x) as i64
+            };
             assert_eq!(x.round_i64(), want, "{x}");
         }
         let mut v = 1i64;

@@ -107,7 +107,12 @@ mod tests {
     fn newtonian_matches_poiseuille() {
         let d = 0.8f64;
         let mu = 1.41f64;
-        let law: FlowLaw<f64> = FlowLaw::new(&Rheology::Newtonian { viscosity_pa_s: 1.41 }, d);
+        let law: FlowLaw<f64> = FlowLaw::new(
+            &Rheology::Newtonian {
+                viscosity_pa_s: 1.41,
+            },
+            d,
+        );
         let expect = 512.0 * (mu as f32 as f64) / (core::f64::consts::PI.powi(2) * d.powi(6));
         assert!((law.a - expect).abs() / expect < 1e-12);
         // 128 mu L / (pi d^4) for L = 2.4 mm equals a * volume.
@@ -119,7 +124,12 @@ mod tests {
 
     #[test]
     fn power_law_with_n_one_is_newtonian() {
-        let a: FlowLaw<f64> = FlowLaw::new(&Rheology::Newtonian { viscosity_pa_s: 3.0 }, 1.2);
+        let a: FlowLaw<f64> = FlowLaw::new(
+            &Rheology::Newtonian {
+                viscosity_pa_s: 3.0,
+            },
+            1.2,
+        );
         let b: FlowLaw<f64> = FlowLaw::new(
             &Rheology::PowerLaw {
                 consistency_pa_sn: 3.0,

@@ -132,7 +132,11 @@ mod tests {
         for i in 0..200_000u32 {
             // A triangle wave of 3 mm amplitude, 0.003 mm per cycle.
             let phase = (i % 2000) as f64;
-            x = if phase < 1000.0 { phase * 0.003 } else { (2000.0 - phase) * 0.003 };
+            x = if phase < 1000.0 {
+                phase * 0.003
+            } else {
+                (2000.0 - phase) * 0.003
+            };
             g.move_to([x, -x, 0.0], &mut out).unwrap();
         }
         assert_eq!(out.position[0], (x * 100.0f64).round() as i64);

@@ -7,7 +7,9 @@ use serde::{Deserialize, Serialize};
 /// A volume in units of 1e-10 mm^3 (0.1 pL). An i64 spans +-9.2e8 mm^3 (922 litres),
 /// far beyond a print, while one control cycle moves about 1e7 units, so rounding a
 /// cycle's float volume to this grid costs under 1e-7 of it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
 pub struct Vol(pub i64);
 
 /// Units per mm^3.
@@ -96,6 +98,5 @@ mod tests {
     fn nan_and_huge_do_not_panic() {
         assert_eq!(Vol::from_mm3(f32::NAN), Vol(0));
         assert_eq!(Vol::from_mm3(f32::INFINITY).0, i64::MAX);
-
     }
 }

@@ -18,9 +18,7 @@ fn every_bundled_config_validates() {
         if path.extension().is_some_and(|e| e == "toml") {
             let name = path.file_name().unwrap().to_str().unwrap().to_string();
             let c = load(&name);
-            let m: Machine<f32, 4> = c
-                .validate()
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            let m: Machine<f32, 4> = c.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
             eprintln!(
                 "{name}: S = {} mm^2, v_flow_max = {:.2} mm/s, corner r = {:.3} mm, P = {:?} Pa",
                 m.bead_area,
@@ -63,7 +61,9 @@ fn bad_files_are_refused_with_the_field_named() {
     let e = toml::from_str::<Config>(&typo).unwrap_err().to_string();
     assert!(e.contains("nozle_diameter_mm"), "{e}");
     let bad_pressure = good.replacen("pressure_kpa = \"auto\"", "pressure_kpa = \"high\"", 1);
-    let e = toml::from_str::<Config>(&bad_pressure).unwrap_err().to_string();
+    let e = toml::from_str::<Config>(&bad_pressure)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("auto"), "{e}");
     // Validation errors name the field.
     let zero = good.replace("nozzle_diameter_mm = 0.8", "nozzle_diameter_mm = 0.0");

@@ -63,14 +63,31 @@ fn long_print_then(tail: &[Command]) -> Job {
 #[test]
 fn a_job_that_drives_an_axis_past_its_limit_stops_safely_before_going_there() {
     // Travel limits of the seed printhead: X 0..200 mm.
-    let j = long_print_then(&[Command::Print { dx: 200_000, dy: 0, material: 0 }, Command::End]);
+    let j = long_print_then(&[
+        Command::Print {
+            dx: 200_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::End,
+    ]);
     let mut max_x = 0.0f64;
-    let r = dollop_sim::run::<f32>(&config("seed-paper.toml"), &j, &RunOptions::default(), |c| {
-        max_x = max_x.max(c.report.position[0] as f64);
-    })
+    let r = dollop_sim::run::<f32>(
+        &config("seed-paper.toml"),
+        &j,
+        &RunOptions::default(),
+        |c| {
+            max_x = max_x.max(c.report.position[0] as f64);
+        },
+    )
     .unwrap();
     assert_eq!(r.state, RunState::Faulted);
-    assert_eq!(r.fault, Some(Fault::Limit { axis: dollop::Axis::X }));
+    assert_eq!(
+        r.fault,
+        Some(Fault::Limit {
+            axis: dollop::Axis::X
+        })
+    );
     assert_safe(&r.outputs, "limit");
     assert!(r.metrics.section_cycles > 100, "the print had started");
     assert!(max_x <= 200.0, "head went to x = {max_x}");
@@ -78,8 +95,21 @@ fn a_job_that_drives_an_axis_past_its_limit_stops_safely_before_going_there() {
     // A travel past the limit while idle is refused the same way.
     let mut ex = executor("seed-paper.toml");
     ex.begin([10_000, 10_000, 1000], 0).unwrap();
-    let (out, last, _) = drive(&mut ex, &[Command::Travel { x: 10_000, y: 10_000, z: 150_000 }], 10);
-    assert_eq!(last.unwrap_err(), Fault::Limit { axis: dollop::Axis::Z });
+    let (out, last, _) = drive(
+        &mut ex,
+        &[Command::Travel {
+            x: 10_000,
+            y: 10_000,
+            z: 150_000,
+        }],
+        10,
+    );
+    assert_eq!(
+        last.unwrap_err(),
+        Fault::Limit {
+            axis: dollop::Axis::Z
+        }
+    );
     assert_safe(&out, "travel limit");
 }
 
@@ -92,7 +122,14 @@ fn a_step_rate_over_the_maximum_stops_safely_mid_bead() {
     m.motion.max_steps_per_cycle = 1;
     let mut ex: Executor<f32> = Executor::new(m);
     ex.begin([10_000, 10_000, 600], 0).unwrap();
-    let job = [Command::Print { dx: 50_000, dy: 0, material: 0 }, Command::End];
+    let job = [
+        Command::Print {
+            dx: 50_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::End,
+    ];
     let (out, last, was_open) = drive(&mut ex, &job, 100_000);
     match last {
         Err(Fault::StepRate { axis, steps, max }) => {
@@ -107,7 +144,10 @@ fn a_step_rate_over_the_maximum_stops_safely_mid_bead() {
     let mut out2 = out.clone();
     out2.valves = 0b11;
     out2.drivers = true;
-    assert!(matches!(ex.tick(10_000_000_000, &mut out2), Err(Fault::StepRate { .. })));
+    assert!(matches!(
+        ex.tick(10_000_000_000, &mut out2),
+        Err(Fault::StepRate { .. })
+    ));
     assert_safe(&out2, "held fault");
 }
 
@@ -115,22 +155,36 @@ fn a_step_rate_over_the_maximum_stops_safely_mid_bead() {
 fn an_invalid_config_stops_a_running_machine_safely() {
     let mut ex = executor("seed-paper.toml");
     ex.begin([10_000, 10_000, 600], 0).unwrap();
-    let job = [Command::Print { dx: 50_000, dy: 0, material: 0 }, Command::End];
+    let job = [
+        Command::Print {
+            dx: 50_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::End,
+    ];
     let (mut out, last, was_open) = drive(&mut ex, &job, 3000);
     assert!(last.is_ok() && was_open && out.valves != 0 && out.drivers);
     let mut bad = config("seed-paper.toml");
     bad.channel.nozzle_diameter_mm = -0.8;
     let e = ex.load_config(&bad, &mut out).unwrap_err();
     match e {
-        LoadError::Invalid(ce) => assert!(ce.to_string().starts_with("channel.nozzle_diameter_mm"), "{ce}"),
+        LoadError::Invalid(ce) => assert!(
+            ce.to_string().starts_with("channel.nozzle_diameter_mm"),
+            "{ce}"
+        ),
         other => panic!("{other:?}"),
     }
     assert_safe(&out, "invalid config");
-    assert_eq!(ex.tick(3000 * PERIOD_US, &mut out).unwrap_err(), Fault::InvalidConfig);
+    assert_eq!(
+        ex.tick(3000 * PERIOD_US, &mut out).unwrap_err(),
+        Fault::InvalidConfig
+    );
     assert_eq!(ex.state(), RunState::Faulted);
     // A valid config is refused while a job is loaded, accepted once the fault is cleared.
     ex.clear_fault();
-    ex.load_config(&config("seed-paper-valves.toml"), &mut out).unwrap();
+    ex.load_config(&config("seed-paper-valves.toml"), &mut out)
+        .unwrap();
     assert_eq!(ex.machine().inlets[0].open_delay_s, 0.01);
 }
 
@@ -138,7 +192,14 @@ fn an_invalid_config_stops_a_running_machine_safely() {
 fn a_config_change_during_a_job_is_refused_without_stopping_it() {
     let mut ex = executor("seed-paper.toml");
     ex.begin([10_000, 10_000, 600], 0).unwrap();
-    let job = [Command::Print { dx: 50_000, dy: 0, material: 0 }, Command::End];
+    let job = [
+        Command::Print {
+            dx: 50_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::End,
+    ];
     let (mut out, _, _) = drive(&mut ex, &job, 3000);
     assert_eq!(
         ex.load_config(&config("seed-paper-valves.toml"), &mut out),
@@ -154,8 +215,16 @@ fn a_queue_that_runs_dry_while_printing_is_an_underrun() {
     ex.begin([10_000, 10_000, 600], 0).unwrap();
     // Two segments and no End: the feeder "stalls".
     let job = [
-        Command::Print { dx: 10_000, dy: 0, material: 0 },
-        Command::Print { dx: 10_000, dy: 0, material: 1 },
+        Command::Print {
+            dx: 10_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::Print {
+            dx: 10_000,
+            dy: 0,
+            material: 1,
+        },
     ];
     let (out, last, was_open) = drive(&mut ex, &job, 100_000);
     assert_eq!(last.unwrap_err(), Fault::Underrun);
@@ -168,32 +237,59 @@ fn invalid_commands_and_late_ticks_are_faults() {
     let mut ex = executor("seed-paper.toml");
     ex.begin([10_000, 10_000, 600], 0).unwrap();
     assert!(matches!(
-        ex.push(Command::Print { dx: 1000, dy: 0, material: 7 }),
+        ex.push(Command::Print {
+            dx: 1000,
+            dy: 0,
+            material: 7
+        }),
         Err(PushError::Rejected(Fault::InvalidCommand(_)))
     ));
     let mut out = RecordingOutputs::default();
-    assert!(matches!(ex.tick(0, &mut out), Err(Fault::InvalidCommand(_))));
+    assert!(matches!(
+        ex.tick(0, &mut out),
+        Err(Fault::InvalidCommand(_))
+    ));
     assert_safe(&out, "invalid command");
 
     let mut ex = executor("seed-paper.toml");
     ex.begin([10_000, 10_000, 600], 0).unwrap();
-    ex.push(Command::Print { dx: 30_000, dy: 0, material: 0 }).unwrap();
+    ex.push(Command::Print {
+        dx: 30_000,
+        dy: 0,
+        material: 0,
+    })
+    .unwrap();
     ex.push(Command::End).unwrap();
     let mut out = RecordingOutputs::default();
     for k in 0..100 {
         ex.tick(k * PERIOD_US, &mut out).unwrap();
     }
     // The control loop stalled for a millisecond.
-    assert_eq!(ex.tick(110 * PERIOD_US, &mut out).unwrap_err(), Fault::Late { periods: 11 });
+    assert_eq!(
+        ex.tick(110 * PERIOD_US, &mut out).unwrap_err(),
+        Fault::Late { periods: 11 }
+    );
     assert_safe(&out, "late tick");
 }
 
 #[test]
 fn e_stop_abort_and_pause() {
     let job = [
-        Command::Print { dx: 20_000, dy: 0, material: 0 },
-        Command::Travel { x: 10_000, y: 20_000, z: 600 },
-        Command::Print { dx: 20_000, dy: 0, material: 1 },
+        Command::Print {
+            dx: 20_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::Travel {
+            x: 10_000,
+            y: 20_000,
+            z: 600,
+        },
+        Command::Print {
+            dx: 20_000,
+            dy: 0,
+            material: 1,
+        },
         Command::End,
     ];
     // E-stop mid-bead.
@@ -203,7 +299,10 @@ fn e_stop_abort_and_pause() {
     assert_ne!(out.valves, 0);
     ex.fault(Fault::EStop, &mut out);
     assert_safe(&out, "e-stop");
-    assert_eq!(ex.tick(5000 * PERIOD_US, &mut out).unwrap_err(), Fault::EStop);
+    assert_eq!(
+        ex.tick(5000 * PERIOD_US, &mut out).unwrap_err(),
+        Fault::EStop
+    );
 
     // Abort mid-bead.
     let mut ex = executor("seed-paper-valves.toml");
@@ -237,7 +336,10 @@ fn e_stop_abort_and_pause() {
     }
     let at = paused_at.expect("never paused");
     assert_eq!(out.valves, 0, "paused with a valve open");
-    assert!((at[0] - 30.0).abs() < 0.01, "paused at {at:?}, not at the bead's end");
+    assert!(
+        (at[0] - 30.0).abs() < 0.01,
+        "paused at {at:?}, not at the bead's end"
+    );
     for _ in 0..1000 {
         let r = ex.tick(k * PERIOD_US, &mut out).unwrap();
         k += 1;

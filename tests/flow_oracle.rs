@@ -117,8 +117,8 @@ fn switch_errors<R: Real>(mu_cur: f64, mu_nxt: f64) -> Errors {
             break;
         }
         let v_mean = dv / (S * dt);
-        let stable = 2.0
-            / (S * ((2.0 * a * (t + dt) + b * b).sqrt() + (2.0 * a * t + b * b).sqrt()));
+        let stable =
+            2.0 / (S * ((2.0 * a * (t + dt) + b * b).sqrt() + (2.0 * a * t + b * b).sqrt()));
         worst.speed = worst.speed.max((v_mean - stable).abs() / stable);
         t += dt;
         worst.cycles += 1;
@@ -139,7 +139,11 @@ fn f64_model_matches_the_closed_forms_within_1e_6() {
         );
         assert!(e.cycles > 100);
         assert!(e.q < 1e-6, "ratio {ratio}: Q off by {:.2e}", e.q);
-        assert!(e.speed < 1e-6, "ratio {ratio}: speed off by {:.2e}", e.speed);
+        assert!(
+            e.speed < 1e-6,
+            "ratio {ratio}: speed off by {:.2e}",
+            e.speed
+        );
         assert!(e.t0 < 1e-6, "ratio {ratio}: t0 off by {:.2e}", e.t0);
     }
 }
@@ -153,7 +157,11 @@ fn f32_model_matches_the_closed_forms_within_1e_4() {
             e.q, e.speed, e.t0, e.cycles
         );
         assert!(e.q < 1e-4, "ratio {ratio}: Q off by {:.2e}", e.q);
-        assert!(e.speed < 1e-4, "ratio {ratio}: speed off by {:.2e}", e.speed);
+        assert!(
+            e.speed < 1e-4,
+            "ratio {ratio}: speed off by {:.2e}",
+            e.speed
+        );
         assert!(e.t0 < 1e-4, "ratio {ratio}: t0 off by {:.2e}", e.t0);
     }
 }
@@ -166,7 +174,11 @@ fn the_unstable_textbook_form_loses_precision_in_f32_where_the_stable_one_does_n
     let naive = ((2.0 * a * (t + dt) + b * b).sqrt() - (2.0 * a * t + b * b).sqrt()) / (a * s * dt);
     let stable = 2.0 / (s * ((2.0 * a * (t + dt) + b * b).sqrt() + (2.0 * a * t + b * b).sqrt()));
     let (a6, b6, s6, dt6, t6) = (a as f64, b as f64, s as f64, dt as f64, t as f64);
-    let exact = 2.0 / (s6 * ((2.0 * a6 * (t6 + dt6) + b6 * b6).sqrt() + (2.0 * a6 * t6 + b6 * b6).sqrt()));
+    let exact =
+        2.0 / (s6 * ((2.0 * a6 * (t6 + dt6) + b6 * b6).sqrt() + (2.0 * a6 * t6 + b6 * b6).sqrt()));
     assert!(((stable as f64) - exact).abs() / exact < 1e-6);
-    assert!(((naive as f64) - exact).abs() / exact > 1e-2, "naive {naive} exact {exact}");
+    assert!(
+        ((naive as f64) - exact).abs() / exact > 1e-2,
+        "naive {naive} exact {exact}"
+    );
 }

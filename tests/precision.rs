@@ -41,5 +41,8 @@ fn f32_and_f64_executors_agree_on_the_plate_within_0_01_mm_over_10000_segments()
         worst = worst.max((a.s_landed - b.s_landed).abs());
     }
     eprintln!("f32 vs f64: worst difference in landed boundary position {worst:.5} mm");
-    assert!(worst <= 0.01, "f32 and f64 boundaries differ by {worst:.4} mm");
+    assert!(
+        worst <= 0.01,
+        "f32 and f64 boundaries differ by {worst:.4} mm"
+    );
 }

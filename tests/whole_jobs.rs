@@ -13,8 +13,18 @@ fn assert_part(name: &str, cfg_name: &str, r: &RunResult, boundaries_at_least: u
     summary(name, r);
     let cfg = config(cfg_name);
     let m = cfg.validate::<f64, 4>().unwrap();
-    assert_eq!(r.state, RunState::Done, "{name}: ended in {:?} {:?}", r.state, r.fault);
-    assert!(r.metrics.mismatches.is_empty(), "{name}: {:?}", r.metrics.mismatches);
+    assert_eq!(
+        r.state,
+        RunState::Done,
+        "{name}: ended in {:?} {:?}",
+        r.state,
+        r.fault
+    );
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{name}: {:?}",
+        r.metrics.mismatches
+    );
     assert!(
         r.metrics.boundaries.len() >= boundaries_at_least,
         "{name}: only {} boundaries measured",
@@ -23,8 +33,16 @@ fn assert_part(name: &str, cfg_name: &str, r: &RunResult, boundaries_at_least: u
     let worst = r.metrics.worst_boundary();
     assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
     let section = r.metrics.worst_section();
-    assert!(section <= 0.01, "{name}: bead section off by {:.3} %", section * 100.0);
-    assert!(r.worst_step_error <= 1.0, "{name}: steps {} microsteps off the plan", r.worst_step_error);
+    assert!(
+        section <= 0.01,
+        "{name}: bead section off by {:.3} %",
+        section * 100.0
+    );
+    assert!(
+        r.worst_step_error <= 1.0,
+        "{name}: steps {} microsteps off the plan",
+        r.worst_step_error
+    );
     let a_max = m.motion.max_accel[0].min(m.motion.max_accel[1]);
     assert!(
         r.peak_accel <= a_max * 1.02,
@@ -32,7 +50,10 @@ fn assert_part(name: &str, cfg_name: &str, r: &RunResult, boundaries_at_least: u
         r.peak_accel
     );
     for (a, &rate) in r.peak_step_rate.iter().enumerate() {
-        assert!(rate <= 50_000.0, "{name}: axis {a} stepped at {rate} steps/s");
+        assert!(
+            rate <= 50_000.0,
+            "{name}: axis {a} stepped at {rate} steps/s"
+        );
     }
 }
 
@@ -82,8 +103,17 @@ fn short_features() -> Job {
 fn features_shorter_than_the_channel_land_within_0_05_mm() {
     for cfg in [IDEAL, VALVES] {
         let r = part(cfg, &short_features());
-        assert!(r.max_slugs >= 3, "{cfg}: only {} slugs in flight", r.max_slugs);
-        assert_part(&format!("short features/{cfg} ({} slugs)", r.max_slugs), cfg, &r, 50);
+        assert!(
+            r.max_slugs >= 3,
+            "{cfg}: only {} slugs in flight",
+            r.max_slugs
+        );
+        assert_part(
+            &format!("short features/{cfg} ({} slugs)", r.max_slugs),
+            cfg,
+            &r,
+            50,
+        );
     }
 }
 

@@ -140,7 +140,11 @@ fn run(name: &str, config: &[u8], syst: &mut SYST) {
     let _ = syst;
     if option_env!("BENCH_TOP").is_some() {
         for (c, t) in s.top {
-            hprintln!("  tick {}: {} instructions", t, c as u64 * 10 / COUNTS_PER_INSN as u64);
+            hprintln!(
+                "  tick {}: {} instructions",
+                t,
+                c as u64 * 10 / COUNTS_PER_INSN as u64
+            );
         }
     }
     let mean_x10 = (s.total * 10 * 10 / (s.ticks as u64 * COUNTS_PER_INSN as u64)) as u32;
@@ -161,9 +165,9 @@ fn run(name: &str, config: &[u8], syst: &mut SYST) {
 }
 
 fn parse_u32(s: &str) -> u32 {
-    s.bytes()
-        .filter(u8::is_ascii_digit)
-        .fold(0u32, |a, d| a.saturating_mul(10).saturating_add((d - b'0') as u32))
+    s.bytes().filter(u8::is_ascii_digit).fold(0u32, |a, d| {
+        a.saturating_mul(10).saturating_add((d - b'0') as u32)
+    })
 }
 
 #[entry]
@@ -172,7 +176,9 @@ fn main() -> ! {
         Some(p) => p,
         None => {
             debug::exit(debug::EXIT_FAILURE);
-            loop {}
+            loop {
+                cortex_m::asm::wfi();
+            }
         }
     };
     cp.SYST.set_clock_source(SystClkSource::Core);
@@ -193,18 +199,30 @@ fn main() -> ! {
     );
     let limit: Option<&str> = option_env!("BENCH_ONLY");
     if limit != Some("pastes") {
-        run("seed printhead, real valves (Newtonian)", VALVES, &mut cp.SYST);
+        run(
+            "seed printhead, real valves (Newtonian)",
+            VALVES,
+            &mut cp.SYST,
+        );
     }
     if limit != Some("valves") {
-        run("food pastes, power law n = 0.6 / 0.45", PASTES, &mut cp.SYST);
+        run(
+            "food pastes, power law n = 0.6 / 0.45",
+            PASTES,
+            &mut cp.SYST,
+        );
     }
     debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     hprintln!("panic: {}", info);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }

@@ -114,7 +114,11 @@ pub fn boustrophedon(fill: &Fill, material: impl Fn(f64, f64, usize) -> u8) -> J
             }
             if row + 1 < fill.rows {
                 // Connector up to the next row, in the material at the row's end.
-                let end_x = if forward { x0 + fill.width_mm - fill.cell_mm / 2.0 } else { x0 + fill.cell_mm / 2.0 };
+                let end_x = if forward {
+                    x0 + fill.width_mm - fill.cell_mm / 2.0
+                } else {
+                    x0 + fill.cell_mm / 2.0
+                };
                 let mat = material(end_x, y + fill.pitch_mm / 2.0, layer);
                 let ny = um(y + fill.pitch_mm);
                 cmds.push(Command::Print {

@@ -202,7 +202,8 @@ impl Meter {
             self.last_pos = c.pos;
             return;
         };
-        let ds = ((c.pos[0] - self.last_pos[0]).powi(2) + (c.pos[1] - self.last_pos[1]).powi(2)).sqrt();
+        let ds =
+            ((c.pos[0] - self.last_pos[0]).powi(2) + (c.pos[1] - self.last_pos[1]).powi(2)).sqrt();
         let s0 = trace.s + trace.extra;
         trace.s += ds;
         if ds > 0.0 {
@@ -264,14 +265,22 @@ impl Meter {
             return;
         };
         if trace.window.1 >= SECTION_WINDOW_MM / 4.0 {
-            let at = trace.samples.last().map(|p| [p[0], p[1]]).unwrap_or_default();
+            let at = trace
+                .samples
+                .last()
+                .map(|p| [p[0], p[1]])
+                .unwrap_or_default();
             self.section(trace.window, at);
         }
         let design = &self.beads[bi];
         // Merge slivers.
         let mut runs: Vec<(f64, u8)> = Vec::new();
         for (k, &(s, m)) in trace.landed.iter().enumerate() {
-            let next_s = trace.landed.get(k + 1).map(|r| r.0).unwrap_or(trace.s + trace.extra);
+            let next_s = trace
+                .landed
+                .get(k + 1)
+                .map(|r| r.0)
+                .unwrap_or(trace.s + trace.extra);
             if next_s - s < SLIVER_MM && (k > 0 || trace.landed.len() > 1) {
                 self.metrics.slivers += 1;
                 continue;
@@ -366,12 +375,32 @@ mod tests {
     fn beads_and_runs_follow_the_commands() {
         let cmds = [
             Command::Travel { x: 0, y: 0, z: 600 },
-            Command::Print { dx: 1000, dy: 0, material: 0 },
-            Command::Print { dx: 1000, dy: 0, material: 1 },
-            Command::Print { dx: 0, dy: 800, material: 1 },
+            Command::Print {
+                dx: 1000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 1000,
+                dy: 0,
+                material: 1,
+            },
+            Command::Print {
+                dx: 0,
+                dy: 800,
+                material: 1,
+            },
             Command::Dwell { ms: 10 },
-            Command::Travel { x: 5000, y: 0, z: 600 },
-            Command::Print { dx: 1000, dy: 0, material: 1 },
+            Command::Travel {
+                x: 5000,
+                y: 0,
+                z: 600,
+            },
+            Command::Print {
+                dx: 1000,
+                dy: 0,
+                material: 1,
+            },
             Command::End,
         ];
         let b = design_beads(&cmds, [0, 0, 0]);
@@ -385,8 +414,16 @@ mod tests {
     fn a_boundary_landing_late_is_measured_along_the_path() {
         let cmds = [
             Command::Travel { x: 0, y: 0, z: 600 },
-            Command::Print { dx: 1000, dy: 0, material: 0 },
-            Command::Print { dx: 1000, dy: 0, material: 1 },
+            Command::Print {
+                dx: 1000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 1000,
+                dy: 0,
+                material: 1,
+            },
             Command::End,
         ];
         let mut m = Meter::new(&cmds, [0, 0, 0], 0.5);
@@ -406,7 +443,11 @@ mod tests {
         let r = m.finish();
         assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
         assert_eq!(r.boundaries.len(), 1);
-        assert!((r.boundaries[0].error() - 0.02).abs() < 1e-9, "{:?}", r.boundaries);
+        assert!(
+            (r.boundaries[0].error() - 0.02).abs() < 1e-9,
+            "{:?}",
+            r.boundaries
+        );
         assert!((r.section_range.0 - 1.0).abs() < 1e-9);
     }
 }

@@ -281,7 +281,9 @@ impl Plant {
             return;
         }
         let (_, feeding) = self.junction(self.t);
-        let m = feeding.map(|f| f as u8).unwrap_or_else(|| self.slugs.back().unwrap().material);
+        let m = feeding
+            .map(|f| f as u8)
+            .unwrap_or_else(|| self.slugs.back().unwrap().material);
         if self.slugs.back().map(|s| s.material) != Some(m) {
             self.slugs.push_back(Slug {
                 material: m,
@@ -293,9 +295,10 @@ impl Plant {
         let land_to = self.entered - self.v_transit;
         while self.slugs.len() > 1 && self.slugs[1].start <= land_to {
             let at = self.slugs[1].start;
-            landed
-                .changes
-                .push((landed.volume + (at - land_from).max(0.0), self.slugs[1].material));
+            landed.changes.push((
+                landed.volume + (at - land_from).max(0.0),
+                self.slugs[1].material,
+            ));
             self.slugs.pop_front();
         }
         landed.volume += dv;
@@ -308,7 +311,13 @@ fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
     let drop = |q: f64| -> f64 {
         laws.iter()
             .zip(content)
-            .map(|(l, &v)| if v > 0.0 { v * l.drop_per_volume(q) } else { 0.0 })
+            .map(|(l, &v)| {
+                if v > 0.0 {
+                    v * l.drop_per_volume(q)
+                } else {
+                    0.0
+                }
+            })
             .sum()
     };
     if p <= drop(0.0) {

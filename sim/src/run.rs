@@ -77,7 +77,7 @@ pub struct RunResult {
     pub metrics: Metrics,
     /// Valve changes commanded.
     pub valve_changes: u64,
-    /// Material switches (valve opened while another was feeding).
+    /// Material switches: a valve opened for another material than the last one opened.
     pub switches: u64,
     /// Highest step rate per axis (steps/s), from the largest per-cycle count.
     pub peak_step_rate: [f64; 3],
@@ -133,6 +133,7 @@ pub fn run<R: Real>(
     let mut cycle: u64 = 0;
     let mut valves_prev = 0u32;
     let mut switches = 0u64;
+    let mut last_opened: Option<u8> = None;
     let mut worst_step_error = 0.0f64;
     let _ = dt;
     let mut peak_accel = 0.0f64;
@@ -215,10 +216,12 @@ pub fn run<R: Real>(
         // Valve changes go to the plant at this instant.
         if out.valves != valves_prev {
             let opened = out.valves & !valves_prev;
-            if opened != 0 && valves_prev == 0 && report.feeding.is_some() {
-                switches += 1;
-            } else if opened != 0 && valves_prev != 0 {
-                switches += 1;
+            if opened != 0 {
+                let inlet = opened.trailing_zeros() as u8;
+                if last_opened.is_some_and(|l| l != inlet) {
+                    switches += 1;
+                }
+                last_opened = Some(inlet);
             }
             if let Some(p) = plant.as_mut() {
                 for i in 0..config.inlets.len() {
@@ -288,7 +291,8 @@ fn curvature(h: &[[f64; 2]; 3]) -> f64 {
     let a = ((h[1][0] - h[0][0]).powi(2) + (h[1][1] - h[0][1]).powi(2)).sqrt();
     let b = ((h[2][0] - h[1][0]).powi(2) + (h[2][1] - h[1][1]).powi(2)).sqrt();
     let c = ((h[2][0] - h[0][0]).powi(2) + (h[2][1] - h[0][1]).powi(2)).sqrt();
-    let cross = (h[1][0] - h[0][0]) * (h[2][1] - h[0][1]) - (h[1][1] - h[0][1]) * (h[2][0] - h[0][0]);
+    let cross =
+        (h[1][0] - h[0][0]) * (h[2][1] - h[0][1]) - (h[1][1] - h[0][1]) * (h[2][0] - h[0][0]);
     if a * b * c <= 0.0 {
         return 0.0;
     }

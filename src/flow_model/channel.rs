@@ -112,14 +112,14 @@ impl<const N: usize> Channel<N> {
         self.slug(self.exit_idx + 1).map(|next| next.start - exit)
     }
 
-    /// Upcoming changes at the exit: (volume from the exit to the change, material after),
+    /// Upcoming changes at the exit: (mm^3 from the exit to the change, material after),
     /// nearest first, at most `out.len()`. Returns how many were written.
-    pub fn exit_changes(&self, out: &mut [(Vol, u8)]) -> usize {
+    pub fn exit_changes<R: crate::real::Real>(&self, out: &mut [(R, u8)]) -> usize {
         let exit = self.entered - self.v_channel;
         let mut n = 0;
         while n < out.len() {
             match self.slug(self.exit_idx + 1 + n) {
-                Some(s) => out[n] = (s.start - exit, s.material),
+                Some(s) => out[n] = ((s.start - exit).mm3(), s.material),
                 None => break,
             }
             n += 1;
@@ -150,11 +150,16 @@ impl<const N: usize> Channel<N> {
         // Fast path, nearly every cycle: no slug start crossed at the exit or the plate.
         let exit = self.entered - self.v_channel;
         let land_to = self.entered + dv - self.v_transit;
-        let exit_clear = self.slug(self.exit_idx + 1).is_none_or(|s| s.start > exit + dv);
+        let exit_clear = self
+            .slug(self.exit_idx + 1)
+            .is_none_or(|s| s.start > exit + dv);
         let land_clear = self.slug(1).is_none_or(|s| s.start > land_to);
         if exit_clear && land_clear {
             let newest = self.newest() as usize;
-            let here = self.slug(self.exit_idx).map(|s| s.material as usize).unwrap_or(0);
+            let here = self
+                .slug(self.exit_idx)
+                .map(|s| s.material as usize)
+                .unwrap_or(0);
             if newest != here {
                 if let Some(v) = self.in_channel.get_mut(newest) {
                     *v += dv;
@@ -174,7 +179,10 @@ impl<const N: usize> Channel<N> {
         let mut exit = self.entered - self.v_channel;
         let exit_end = exit + dv;
         loop {
-            let here = self.slug(self.exit_idx).map(|s| s.material as usize).unwrap_or(0);
+            let here = self
+                .slug(self.exit_idx)
+                .map(|s| s.material as usize)
+                .unwrap_or(0);
             let next_start = self.slug(self.exit_idx + 1).map(|s| s.start);
             // A slug that starts exactly where the exit stops is the exit's slug from now on.
             let (upto, crossed) = match next_start {

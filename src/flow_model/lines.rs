@@ -98,7 +98,12 @@ impl<R: Real> Line<R> {
             return;
         }
         self.commanded = open;
-        let at = next + if open { params.open_delay } else { params.close_delay } as u64;
+        let at = next
+            + if open {
+                params.open_delay
+            } else {
+                params.close_delay
+            } as u64;
         // A later command that acts sooner supersedes changes still queued after it.
         while let Some(&(t, _)) = self.pending.back() {
             if t >= at {

@@ -52,32 +52,38 @@ impl<R: Real> PLine<R> {
             next: 0,
         }
     }
-    /// The line `l` with `open` commanded before cycle `next`, by the same rule as
-    /// `Line::command` (a command that acts sooner supersedes later pending ones), without
-    /// copying the line's queue first.
-    fn commanded(l: &Line<R>, open: bool, next: u64, params: &LineParams<R>) -> Self {
-        let mut out = PLine::idle();
-        out.p = l.p;
-        out.open = l.open;
-        let at = next + if open { params.open_delay } else { params.close_delay } as u64;
+    /// Becomes the line `l` with `open` commanded before cycle `next`, by the same rule as
+    /// `Line::command` (a command that acts sooner supersedes later pending ones). In
+    /// place: building a copy and moving it costs a memcpy per line on the M4.
+    fn set_commanded(&mut self, l: &Line<R>, open: bool, next: u64, params: &LineParams<R>) {
+        self.p = l.p;
+        self.open = l.open;
+        self.next = 0;
+        self.len = 0;
+        let at = next
+            + if open {
+                params.open_delay
+            } else {
+                params.close_delay
+            } as u64;
         let change = open != l.commanded;
         for &e in l.pending.iter() {
             if change && e.0 >= at {
                 break;
             }
-            out.ev[out.len as usize] = e;
-            out.len += 1;
+            self.ev[self.len as usize] = e;
+            self.len += 1;
         }
         if change {
-            if out.len as usize == PENDING_CAP {
-                out.ev.copy_within(1.., 0);
-                out.len -= 1;
+            if self.len as usize == PENDING_CAP {
+                self.ev.copy_within(1.., 0);
+                self.len -= 1;
             }
-            out.ev[out.len as usize] = (at, open);
-            out.len += 1;
+            self.ev[self.len as usize] = (at, open);
+            self.len += 1;
         }
-        out
     }
+
     /// Acts on changes due by cycle `k`; returns the cycle of the next one still pending.
     #[inline]
     fn apply_due(&mut self, k: u64) -> Option<u64> {
@@ -162,16 +168,14 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             .zip(model.params())
             .enumerate()
         {
-            *dst = PLine::commanded(src, mask & (1 << i) != 0, next, p);
+            dst.set_commanded(src, mask & (1 << i) != 0, next, p);
             p_scale = p_scale.max(p.supply).max(src.p);
         }
-        let mut raw = [(crate::vol::Vol::ZERO, 0u8); EXITS];
-        self.n_exits = model.channel().exit_changes(&mut raw);
-        for (e, r) in self.exits.iter_mut().zip(raw.iter()).take(self.n_exits) {
-            *e = (r.0.mm3(), r.1);
-        }
+        self.n_exits = model.channel().exit_changes(&mut self.exits);
         self.goal = goal;
-        self.vin = model.vin();
+        for (v, c) in self.vin.iter_mut().zip(model.channel().in_channel()) {
+            *v = c.mm3();
+        }
         self.exit_next = 0;
         self.exit_material = model.channel().at_exit();
         self.exit_pos = R::ZERO;
@@ -289,7 +293,9 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 if end_margin <= R::ZERO && lead > R::ZERO && settled {
                     // Crossed inside the chunk: interpolate the pressure difference.
                     let f = if start_margin > end_margin {
-                        (start_margin / (start_margin - end_margin)).min(R::ONE).max(R::ZERO)
+                        (start_margin / (start_margin - end_margin))
+                            .min(R::ONE)
+                            .max(R::ZERO)
                     } else {
                         R::ZERO
                     };

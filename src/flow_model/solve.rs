@@ -146,7 +146,12 @@ mod tests {
 
     fn laws() -> [FlowLaw<f64>; 3] {
         [
-            FlowLaw::new(&Rheology::Newtonian { viscosity_pa_s: 1.41 }, 0.8),
+            FlowLaw::new(
+                &Rheology::Newtonian {
+                    viscosity_pa_s: 1.41,
+                },
+                0.8,
+            ),
             FlowLaw::new(
                 &Rheology::PowerLaw {
                     consistency_pa_sn: 20.0,
@@ -172,7 +177,12 @@ mod tests {
     #[test]
     fn mixed_content_solves_to_the_pressure() {
         let l = laws();
-        for v in [[0.4, 0.4, 0.4], [1.2, 0.0, 0.0], [0.0, 1.2, 0.0], [0.1, 0.0, 1.1]] {
+        for v in [
+            [0.4, 0.4, 0.4],
+            [1.2, 0.0, 0.0],
+            [0.0, 1.2, 0.0],
+            [0.1, 0.0, 1.1],
+        ] {
             for p in [500.0, 3000.0, 20000.0] {
                 let q = flow(&l, &v, p, 0.0);
                 let back = residual(&l, &v, q);
@@ -196,7 +206,12 @@ mod tests {
     fn f32_solve_agrees_with_f64() {
         let l64 = laws();
         let l32: [FlowLaw<f32>; 3] = [
-            FlowLaw::new(&Rheology::Newtonian { viscosity_pa_s: 1.41 }, 0.8),
+            FlowLaw::new(
+                &Rheology::Newtonian {
+                    viscosity_pa_s: 1.41,
+                },
+                0.8,
+            ),
             FlowLaw::new(
                 &Rheology::PowerLaw {
                     consistency_pa_sn: 20.0,

@@ -58,6 +58,11 @@ pub fn summary(name: &str, r: &RunResult) {
     let mut worst: Vec<_> = m.boundaries.iter().collect();
     worst.sort_by(|a, b| b.error().abs().total_cmp(&a.error().abs()));
     for b in worst.iter().take(5) {
-        eprintln!("  boundary at {:?} -> {}: error {:+.4} mm", b.point, b.material, b.error());
+        eprintln!(
+            "  boundary at {:?} -> {}: error {:+.4} mm",
+            b.point,
+            b.material,
+            b.error()
+        );
     }
 }
