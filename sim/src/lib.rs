@@ -3,6 +3,7 @@
 //! designs, and print-quality metrics. Used by the core's whole-job tests and by
 //! `dollop simulate`; file formats and pictures belong to the host tools.
 
+pub mod bench;
 pub mod designs;
 pub mod metrics;
 pub mod plant;

@@ -10,6 +10,9 @@ use dollop::config::Config;
 use dollop::rheology::FlowLaw;
 use std::collections::VecDeque;
 
+/// Inlets the plant models at most (the config format's limit).
+const MAX_INLETS: usize = dollop::config::MAX_CONFIG_INLETS;
+
 /// One pneumatic line.
 #[derive(Clone, Debug)]
 struct Line {
@@ -233,26 +236,26 @@ impl Plant {
         let (p, feeding) = self.junction(t);
         let Some(f) = feeding else { return 0.0 };
         let content = self.content(extra, f as u8);
-        solve(&self.laws, &content, p)
+        solve(&self.laws, &content[..self.laws.len()], p)
     }
 
     /// Per-material volume inside the channel after `extra` more of `feeding` entered.
-    fn content(&self, extra: f64, feeding: u8) -> Vec<f64> {
-        let mut v = vec![0.0; self.laws.len()];
+    fn content(&self, extra: f64, feeding: u8) -> [f64; MAX_INLETS] {
+        let mut v = [0.0; MAX_INLETS];
         let top = self.entered + extra;
         let bottom = top - self.v_channel;
-        let n = self.slugs.len();
-        for (i, s) in self.slugs.iter().enumerate() {
-            let end = if i + 1 < n {
-                self.slugs[i + 1].start
-            } else {
-                self.entered
-            };
+        // Newest first: only the slugs reaching into the channel matter.
+        let mut end = self.entered;
+        for s in self.slugs.iter().rev() {
             let lo = s.start.max(bottom);
             let hi = end.min(top);
             if hi > lo {
                 v[s.material as usize] += hi - lo;
             }
+            if s.start <= bottom {
+                break;
+            }
+            end = s.start;
         }
         // The part that entered during the stage.
         let lo = self.entered.max(bottom);
@@ -322,6 +325,15 @@ fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
     };
     if p <= drop(0.0) {
         return 0.0;
+    }
+    // Newtonian content: the drop is linear in Q.
+    if laws
+        .iter()
+        .zip(content)
+        .all(|(l, &v)| v <= 0.0 || (l.n == 1.0 && l.b == 0.0))
+    {
+        let r: f64 = laws.iter().zip(content).map(|(l, &v)| v.max(0.0) * l.a).sum();
+        return p / r;
     }
     let mut hi = 1.0;
     while drop(hi) < p {
