@@ -1,10 +1,394 @@
-//! `dollop simulate` (not yet implemented).
+//! `dollop simulate`: runs a job through the same executor the firmware runs, in virtual
+//! time, metered by the reference plant (or the executor's own model); writes the CSV
+//! trace and the plate heatmap and prints the report. Slicing and file formats are the
+//! slicer's; the physics and the metrics are `dollop-sim`'s.
+
+use crate::slicer::{self, output};
+use anyhow::Context;
+use dollop::config::Config;
+use dollop::RunState;
+use dollop_sim::metrics::Boundary;
+use dollop_sim::{Job, RunOptions, RunResult};
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop simulate`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Job file (.dlp) to run.
+    pub job: PathBuf,
+    /// Machine config (TOML) to run it on.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Write a CSV trace `t_s,x_mm,y_mm,z_mm,valve_mask`: a row every millisecond of
+    /// simulated time and one at every valve change (bit i: inlet i commanded open).
+    #[arg(long, value_name = "TRACE.csv")]
+    pub trace: Option<PathBuf>,
+    /// Draw the plate: the material deposited in each cell, and every material boundary
+    /// as a dot coloured by its error (green 0, yellow 0.025 mm, red 0.05 mm and beyond).
+    #[arg(long, value_name = "OUT.png")]
+    pub heatmap: Option<PathBuf>,
+    /// Print the report: print time, material switches, worst boundary error, bead
+    /// cross-section range, peak step rate per axis (printed anyway without other outputs).
+    #[arg(long)]
+    pub report: bool,
+    /// Meter the executor's own flow model instead of the independent reference plant:
+    /// faster, but it cannot disagree with the executor.
+    #[arg(long)]
+    pub model_only: bool,
+}
+
+/// What `simulate_job` should produce besides the result.
+pub struct Outputs<'a> {
+    /// Trace rows go here.
+    pub trace: Option<&'a mut dyn Write>,
+    /// Paint the plate.
+    pub heatmap: Option<&'a mut Heatmap>,
+    /// Show a progress bar on a terminal.
+    pub progress: bool,
+}
+
+/// Runs `job` on `config`, streaming the trace and painting the heatmap.
+pub fn simulate_job(
+    config: &Config,
+    job: &Job,
+    plant: bool,
+    out: Outputs<'_>,
+) -> anyhow::Result<RunResult> {
+    let machine = config
+        .validate::<f64, { slicer::INLETS }>()
+        .map_err(|e| anyhow::anyhow!("config: {e}"))?;
+    let period_us = machine.period_us as u64;
+    // A trace row every millisecond (and at valve changes).
+    let every = (1000 / period_us).max(1);
+    let bar = if out.progress {
+        output::progress(job.commands.len() as u64, "simulating")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let Outputs {
+        mut trace,
+        mut heatmap,
+        ..
+    } = out;
+    let mut io_error: Option<std::io::Error> = None;
+    if let Some(w) = trace.as_deref_mut() {
+        if let Err(e) = writeln!(w, "t_s,x_mm,y_mm,z_mm,valve_mask") {
+            io_error = Some(e);
+        }
+    }
+    let mut cycle = 0u64;
+    let mut last_mask = u32::MAX;
+    let opts = RunOptions {
+        plant,
+        ..Default::default()
+    };
+    let result = dollop_sim::run::<f32>(config, job, &opts, |c| {
+        let r = c.report;
+        if let Some(w) = trace.as_deref_mut() {
+            if io_error.is_none() && (cycle % every == 0 || r.valves != last_mask) {
+                if let Err(e) = writeln!(
+                    w,
+                    "{:.4},{:.4},{:.4},{:.4},{}",
+                    c.t_s, r.position[0], r.position[1], r.position[2], r.valves
+                ) {
+                    io_error = Some(e);
+                }
+            }
+        }
+        last_mask = r.valves;
+        if let Some(h) = heatmap.as_deref_mut() {
+            if c.landed_volume > 0.0 && matches!(r.state, RunState::Printing | RunState::Settling) {
+                h.paint(r.position[0] as f64, r.position[1] as f64, c.landing);
+            }
+        }
+        if cycle % 1000 == 0 {
+            bar.set_position(r.command_index as u64);
+        }
+        cycle += 1;
+    })
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    bar.finish_and_clear();
+    if let Some(e) = io_error {
+        return Err(e).context("writing the trace");
+    }
+    Ok(result)
+}
+
+/// The report, as printed.
+pub fn report_text(r: &RunResult, config: &Config, plant: bool, wall: std::time::Duration) -> String {
+    let m = &r.metrics;
+    let limit = config.motion.max_step_rate_hz;
+    let mut s = String::new();
+    s.push_str(&format!(
+        "state             {:?}{}\n",
+        r.state,
+        r.fault.map(|f| format!(": {f}")).unwrap_or_default()
+    ));
+    s.push_str(&format!(
+        "print time        {:.1} s ({} print segments; simulated in {:.2?})\n",
+        r.time_s, r.segments, wall
+    ));
+    s.push_str(&format!("material switches {}\n", r.switches));
+    s.push_str(&format!(
+        "boundaries        {} measured, worst {:.4} mm from the design along the path\n",
+        m.boundaries.len(),
+        m.worst_boundary()
+    ));
+    for line in m.mismatches.iter().take(3) {
+        s.push_str(&format!("  material sequence differs: {line}\n"));
+    }
+    s.push_str(&format!(
+        "bead section      {:.4} .. {:.4} of S = {:.3} mm^2 (over every 0.02 mm of bead)\n",
+        m.section_range.0, m.section_range.1, r.bead_area
+    ));
+    s.push_str(&format!(
+        "peak step rate    X {:.0}, Y {:.0}, Z {:.0} steps/s (drivers take {:.0})\n",
+        r.peak_step_rate[0], r.peak_step_rate[1], r.peak_step_rate[2], limit
+    ));
+    s.push_str(&format!(
+        "corner accel      {:.0} mm/s^2 at most on beads\n",
+        r.peak_accel
+    ));
+    s.push_str(&format!(
+        "off the path      {:.4} mm^3 landed between beads\n",
+        m.off_path_volume
+    ));
+    s.push_str(&format!(
+        "metered by        {}\n",
+        if plant {
+            "the reference plant (independent f64 physics)"
+        } else {
+            "the executor's own flow model"
+        }
+    ));
+    s
+}
 
 /// Runs `dollop simulate`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`dollop simulate` is not implemented yet")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let config = slicer::load_config(&a.config)?;
+    let (header, commands) = slicer::job_file::read_job(&a.job)?;
+    let hash = dollop::job::config_hash(&config);
+    if header.config_hash != hash {
+        eprintln!(
+            "dollop: note: {} was sliced for another config (hash {:08x}, {} has {:08x}); simulating anyway",
+            a.job.display(),
+            header.config_hash,
+            a.config.display(),
+            hash
+        );
+    }
+    let job = Job {
+        start_um: header.start_um,
+        initial_material: header.initial_material,
+        commands,
+    };
+    let mut heat = match &a.heatmap {
+        Some(_) => Some(Heatmap::for_job(&job, &config)),
+        None => None,
+    };
+    let plant = !a.model_only;
+    let t = std::time::Instant::now();
+    let result = match &a.trace {
+        Some(path) => {
+            let mut res = None;
+            let mut failure = None;
+            output::write_atomic(path, |w| {
+                match simulate_job(
+                    &config,
+                    &job,
+                    plant,
+                    Outputs {
+                        trace: Some(w),
+                        heatmap: heat.as_mut(),
+                        progress: true,
+                    },
+                ) {
+                    Ok(r) => {
+                        res = Some(r);
+                        Ok(())
+                    }
+                    Err(e) => {
+                        failure = Some(e);
+                        Err(std::io::Error::other("simulation failed"))
+                    }
+                }
+            })
+            .map_err(|e| match failure.take() {
+                Some(f) => f,
+                None => anyhow::anyhow!("{e}"),
+            })?;
+            res.context("simulation produced no result")?
+        }
+        None => simulate_job(
+            &config,
+            &job,
+            plant,
+            Outputs {
+                trace: None,
+                heatmap: heat.as_mut(),
+                progress: true,
+            },
+        )?,
+    };
+    let wall = t.elapsed();
+    if let (Some(path), Some(h)) = (&a.heatmap, heat.as_mut()) {
+        h.mark_boundaries(&result.metrics.boundaries);
+        h.save(path)?;
+    }
+    if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
+        print!("{}", report_text(&result, &config, plant, wall));
+    }
+    if let Some(f) = result.fault {
+        anyhow::bail!("{}: the job ended in a fault: {f}", a.job.display());
+    }
+    Ok(())
+}
+
+/// Material colours on the plate, by inlet.
+pub const PALETTE: [[u8; 3]; 8] = [
+    [232, 196, 74],
+    [110, 62, 34],
+    [200, 40, 60],
+    [60, 140, 70],
+    [70, 110, 200],
+    [150, 80, 170],
+    [40, 170, 170],
+    [120, 120, 120],
+];
+
+/// The plate as a picture: deposited material per cell, boundary errors as coloured dots.
+pub struct Heatmap {
+    x0: f64,
+    y1: f64,
+    px_per_mm: f64,
+    img: image::RgbImage,
+    radius: i64,
+    last: Option<(i64, i64, u8)>,
+}
+
+/// Largest heatmap side, pixels.
+const MAX_SIDE: f64 = 4000.0;
+
+impl Heatmap {
+    /// A blank plate covering the job's extent with a margin.
+    pub fn for_job(job: &Job, config: &Config) -> Self {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        let mut p = [job.start_um[0] as f64 * 1e-3, job.start_um[1] as f64 * 1e-3];
+        let mut grow = |p: [f64; 2]| {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        };
+        grow(p);
+        for c in &job.commands {
+            match *c {
+                dollop::Command::Print { dx, dy, .. } => {
+                    p[0] += dx as f64 * 1e-3;
+                    p[1] += dy as f64 * 1e-3;
+                }
+                dollop::Command::Travel { x, y, .. } => p = [x as f64 * 1e-3, y as f64 * 1e-3],
+                _ => {}
+            }
+            grow(p);
+        }
+        let margin = 2.0;
+        let (w_mm, h_mm) = (hi[0] - lo[0] + 2.0 * margin, hi[1] - lo[1] + 2.0 * margin);
+        let px_per_mm = (20.0f64).min(MAX_SIDE / w_mm.max(h_mm).max(1.0));
+        let w = (w_mm * px_per_mm).ceil().max(1.0) as u32;
+        let h = (h_mm * px_per_mm).ceil().max(1.0) as u32;
+        let pitch = config.channel.line_pitch_mm as f64;
+        Heatmap {
+            x0: lo[0] - margin,
+            y1: hi[1] + margin,
+            px_per_mm,
+            img: image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255])),
+            radius: ((pitch * 0.5 * px_per_mm).round() as i64).max(1),
+            last: None,
+        }
+    }
+
+    fn to_px(&self, x: f64, y: f64) -> (i64, i64) {
+        (
+            ((x - self.x0) * self.px_per_mm).round() as i64,
+            ((self.y1 - y) * self.px_per_mm).round() as i64,
+        )
+    }
+
+    fn disk(&mut self, cx: i64, cy: i64, r: i64, colour: [u8; 3]) {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if dx * dx + dy * dy > r * r {
+                    continue;
+                }
+                let (x, y) = (cx + dx, cy + dy);
+                if x >= 0 && y >= 0 && (x as u32) < self.img.width() && (y as u32) < self.img.height() {
+                    self.img.put_pixel(x as u32, y as u32, image::Rgb(colour));
+                }
+            }
+        }
+    }
+
+    /// Paint bead of `material` where the head stands.
+    pub fn paint(&mut self, x: f64, y: f64, material: u8) {
+        let (px, py) = self.to_px(x, y);
+        if self.last == Some((px, py, material)) {
+            return;
+        }
+        self.last = Some((px, py, material));
+        let colour = PALETTE[material as usize % PALETTE.len()];
+        self.disk(px, py, self.radius, colour);
+    }
+
+    /// Dots for every boundary, coloured by its error along the path.
+    pub fn mark_boundaries(&mut self, boundaries: &[Boundary]) {
+        let r = (self.radius / 2).max(2);
+        for b in boundaries {
+            let (px, py) = self.to_px(b.point[0], b.point[1]);
+            self.disk(px, py, r + 1, [0, 0, 0]);
+            self.disk(px, py, r, error_colour(b.error().abs()));
+        }
+        // Legend: the error scale from 0 (left) to 0.05 mm (right) along the top edge.
+        let w = (self.img.width() / 3).max(10);
+        for x in 0..w.min(self.img.width()) {
+            let c = error_colour(0.05 * x as f64 / w as f64);
+            for y in 0..6.min(self.img.height()) {
+                self.img.put_pixel(x, y, image::Rgb(c));
+            }
+        }
+    }
+
+    /// Writes the PNG atomically.
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        use image::ImageEncoder;
+        output::write_atomic(path, |w| {
+            image::codecs::png::PngEncoder::new(w)
+                .write_image(
+                    self.img.as_raw(),
+                    self.img.width(),
+                    self.img.height(),
+                    image::ExtendedColorType::Rgb8,
+                )
+                .map_err(std::io::Error::other)
+        })?;
+        Ok(())
+    }
+
+    /// The picture.
+    pub fn image(&self) -> &image::RgbImage {
+        &self.img
+    }
+}
+
+/// Green at 0, yellow at 0.025 mm, red at 0.05 mm and beyond.
+fn error_colour(e: f64) -> [u8; 3] {
+    let f = (e / 0.05).clamp(0.0, 1.0);
+    if f < 0.5 {
+        [(510.0 * f) as u8, 190, 40]
+    } else {
+        [255, (190.0 * (1.0 - f) * 2.0) as u8, 40]
+    }
 }
