@@ -280,6 +280,8 @@ pub enum Problem {
     },
     /// `auto` pressure could not be computed (flow law gives no finite value).
     AutoPressure,
+    /// Some inlets are syringes and some pneumatic; a machine is one or the other.
+    MixedDrives,
 }
 
 /// A config value that cannot print, naming the field and the reason.
@@ -340,6 +342,10 @@ impl fmt::Display for ConfigError {
                 write!(f, "{got} is above {what} ({limit})")
             }
             Problem::AutoPressure => write!(f, "\"auto\" pressure could not be computed"),
+            Problem::MixedDrives => write!(
+                f,
+                "mixes syringe and pneumatic inlets; make every inlet a syringe or none"
+            ),
         }
     }
 }
@@ -359,6 +365,38 @@ pub struct Inlet<R> {
     pub rise_s: R,
     /// Decay time constant, s (0: instant).
     pub decay_s: R,
+    /// Present for a stepper-driven syringe inlet (then the fields above are unused).
+    pub syringe: Option<Syringe<R>>,
+}
+
+/// A validated syringe inlet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Syringe<R> {
+    /// Plunger microsteps per mm^3.
+    pub steps_per_mm3: R,
+    /// Weibull rate k of the outflow lag, s^-n.
+    pub lag_k: R,
+    /// Weibull shape n.
+    pub lag_n: R,
+    /// Plunger displacement rate while the inlet feeds, mm^3/s: the bead at
+    /// `print_speed_mm_s`.
+    pub rate: R,
+}
+
+impl Syringe<f64> {
+    /// Fraction of the plunger's rate flowing out `t` seconds after it started:
+    /// `F(t) = 1 - exp(-k t^n)`.
+    pub fn response(k: f64, n: f64, t: f64) -> f64 {
+        if t <= 0.0 {
+            0.0
+        } else {
+            1.0 - libm::exp(-k * libm::pow(t, n))
+        }
+    }
+    /// Time after which the response is within 1e-6 of 1, s.
+    pub fn settle_time(k: f64, n: f64) -> f64 {
+        libm::pow(libm::log(1e6) / k, 1.0 / n)
+    }
 }
 
 /// Validated motion limits in mm and s.
@@ -406,6 +444,8 @@ pub struct Machine<R, const N: usize> {
     pub corner_radius: R,
     /// Flow counted as stopped, mm^3/s.
     pub q_stop: R,
+    /// Every inlet is a stepper-driven syringe (else every inlet is pneumatic).
+    pub syringes: bool,
 }
 
 impl<R: Real, const N: usize> Machine<R, N> {
@@ -715,11 +755,34 @@ impl Config {
                     p
                 }
             };
-            if let Some(sy) = inlet.syringe {
-                ic.positive_max("syringe.steps_per_mm3", sy.steps_per_mm3, 1.0e6)?;
-                ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
-                ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
-            }
+            let syringe = match inlet.syringe {
+                Some(sy) => {
+                    let spm3 = ic.positive_max("syringe.steps_per_mm3", sy.steps_per_mm3, 1.0e6)?;
+                    let k = ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
+                    let n = ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
+                    if self.inlets.iter().any(|x| x.syringe.is_none()) {
+                        return Err(ic.err("syringe", Problem::MixedDrives));
+                    }
+                    let rate = print_speed * s;
+                    let needed = rate * spm3 as f64;
+                    if needed > allowed_rate {
+                        return Err(ic.err(
+                            "syringe.steps_per_mm3",
+                            Problem::StepRate {
+                                needed: needed as f32,
+                                allowed: allowed_rate as f32,
+                            },
+                        ));
+                    }
+                    Some(Syringe {
+                        steps_per_mm3: R::of(spm3 as f64),
+                        lag_k: R::of(k as f64),
+                        lag_n: R::of(n as f64),
+                        rate: R::of(rate),
+                    })
+                }
+                None => None,
+            };
             let open = ic.range(
                 "valve_open_delay_ms",
                 inlet.valve_open_delay_ms,
@@ -742,18 +805,44 @@ impl Config {
                 close_delay_s: R::of(close as f64 * 1e-3),
                 rise_s: R::of(rise as f64 * 1e-3),
                 decay_s: R::of(decay as f64 * 1e-3),
+                syringe,
             });
         }
         // The junction never exceeds the highest supply and the channel never resists less
         // than when full of its least resistive material, so this bounds the head speed.
         let mut v_flow_max = 0.0f64;
         let mut worst = (0u8, 0u8);
-        for (i, &p) in supplies.iter().enumerate() {
-            for (j, law) in laws.iter().enumerate() {
-                let v = flow_full(law, p, v_channel) / s;
-                if v > v_flow_max {
-                    v_flow_max = v;
-                    worst = (i as u8, j as u8);
+        if self.inlets.iter().all(|x| x.syringe.is_some()) {
+            // Syringes push volume: during a switch the stopping syringe's outflow
+            // decays while the starting one's rises; their sum bounds the speed.
+            let rate = print_speed * s;
+            for (i, a) in self.inlets.iter().enumerate() {
+                for (j, b) in self.inlets.iter().enumerate() {
+                    let (Some(sa), Some(sb)) = (a.syringe, b.syringe) else {
+                        continue;
+                    };
+                    let (ka, na) = (sa.lag_k as f64, sa.lag_n as f64);
+                    let (kb, nb) = (sb.lag_k as f64, sb.lag_n as f64);
+                    let t_end = Syringe::settle_time(ka, na).max(Syringe::settle_time(kb, nb));
+                    for step in 0..=4000 {
+                        let t = t_end * step as f64 / 4000.0;
+                        let total = 1.0 - Syringe::response(ka, na, t) + Syringe::response(kb, nb, t);
+                        let v = rate * total / s;
+                        if v > v_flow_max {
+                            v_flow_max = v;
+                            worst = (j as u8, i as u8);
+                        }
+                    }
+                }
+            }
+        } else {
+            for (i, &p) in supplies.iter().enumerate() {
+                for (j, law) in laws.iter().enumerate() {
+                    let v = flow_full(law, p, v_channel) / s;
+                    if v > v_flow_max {
+                        v_flow_max = v;
+                        worst = (i as u8, j as u8);
+                    }
                 }
             }
         }
@@ -789,6 +878,7 @@ impl Config {
             v_flow_max: R::of(v_flow_max),
             corner_radius: R::of(corner_radius),
             q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
+            syringes: self.inlets.iter().all(|x| x.syringe.is_some()),
         })
     }
 }

@@ -348,6 +348,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     switch: Tracker<R, N>,
     stop: Tracker<R, N>,
     window: Vol,
+    /// Largest shortfall of a bead's end (paste ran out before it), as volume.
+    short: Vol,
     dt: R,
     /// 1 / bead section.
     inv_s: R,
@@ -361,6 +363,10 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     last_dv: Vol,
     last_q: R,
     last_index: u32,
+    /// Syringe plungers: volume displaced so far, steps emitted, volume per cycle.
+    plunger_vol: [Vol; N],
+    plunger_steps: [i64; N],
+    plunger_per_cycle: [Vol; N],
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -394,6 +400,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             switch: Tracker::new(),
             stop: Tracker::new(),
             window,
+            short: Vol::ZERO,
             dt: machine.dt(),
             inv_s: R::ONE / machine.bead_area,
             lost: Vol::ZERO,
@@ -406,6 +413,17 @@ impl<R: Real, const N: usize> Executor<R, N> {
             last_dv: Vol::ZERO,
             last_q: R::ZERO,
             last_index: 0,
+            plunger_vol: [Vol::ZERO; N],
+            plunger_steps: [0; N],
+            plunger_per_cycle: core::array::from_fn(|i| {
+                machine
+                    .inlets
+                    .get(i)
+                    .and_then(|inlet| inlet.syringe)
+                    .filter(|_| machine.syringes)
+                    .map(|sy| Vol::from_mm3(sy.rate * machine.dt()))
+                    .unwrap_or(Vol::ZERO)
+            }),
             machine,
         }
     }
@@ -676,6 +694,28 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.safe_state(f, out);
             return Err(f);
         }
+        // Syringe plungers (E axes).
+        if self.machine.syringes {
+            let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+            for (i, inlet) in self.machine.inlets.iter().enumerate() {
+                let Some(sy) = inlet.syringe else { continue };
+                let target = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i64();
+                let d = target - self.plunger_steps[i];
+                if d.unsigned_abs() > max {
+                    let f = Fault::StepRate {
+                        axis: Axis::E(i as u8),
+                        steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
+                        max: max as u32,
+                    };
+                    self.safe_state(f, out);
+                    return Err(f);
+                }
+                if d != 0 {
+                    out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
+                    self.plunger_steps[i] = target;
+                }
+            }
+        }
         // Valves as decided.
         let mask = self.model.commanded();
         if mask != self.valves_out {
@@ -693,6 +733,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Volume that left the nozzle off the print path so far (between beads).
     pub fn lost_volume(&self) -> Vol {
         self.lost
+    }
+    /// Largest distance by which a bead ended short of its planned end, mm (the flow's
+    /// tail delivered less than predicted).
+    pub fn shortfall_mm(&self) -> R {
+        self.short.mm3::<R>() * self.inv_s
     }
     /// Cycles run since the job began.
     pub fn cycle(&self) -> u64 {
@@ -732,6 +777,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
     fn cycle_once(&mut self) -> Result<Vol, Fault> {
         self.cycle += 1;
+        let running = self.model.commanded();
+        for (i, v) in self.plunger_vol.iter_mut().enumerate() {
+            if running & (1 << i) != 0 {
+                *v += self.plunger_per_cycle[i];
+            }
+        }
         let flow = self.model.step()?;
         self.last_q = flow.q;
         let dv = flow.dv;
@@ -949,11 +1000,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
         if self.head > seg.u_end {
             self.lost += self.head - seg.u_end;
         }
+        // The head stays where the paste ran out: a tail that delivered less than the
+        // bead's rest leaves it a little short, rather than jumping the gap dry. The plan
+        // clock moves on to the end so the next bead's boundaries keep their volumes.
+        if self.head < seg.u_end {
+            self.short = self.short.max(seg.u_end - self.head);
+        }
         self.head = seg.u_end;
         self.ends.pop_front();
-        let end = seg_end(&seg);
-        self.head_pos[0] = end[0];
-        self.head_pos[1] = end[1];
         self.plan.pop_front();
         self.switch.reset();
         self.stop.reset();
@@ -1190,16 +1244,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 }
 
-fn seg_end<R: Real>(seg: &Seg<R>) -> V2<R> {
-    match seg.fillet {
-        Some(f) => f.point(f.length()),
-        None => [
-            seg.start[0] + seg.dir[0] * seg.len,
-            seg.start[1] + seg.dir[1] * seg.len,
-        ],
-    }
-}
-
 /// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
 fn cycles32(c: u64) -> u32 {
     c.min(u32::MAX as u64) as u32
@@ -1214,12 +1258,20 @@ fn sat_i32(v: i64) -> i32 {
 }
 
 /// How far ahead of a boundary (as volume) predictions start: the most that can flow at
-/// top speed during the slowest valve's dead time plus eight time constants, plus 2 ms.
+/// top speed during the slowest valve's dead time plus eight time constants (or a
+/// syringe's time to 90 % response), plus 2 ms.
 fn lead_window<R: Real, const N: usize>(m: &Machine<R, N>) -> Vol {
     let mut t = R::of(0.002);
     let mut worst = R::ZERO;
     for i in m.inlets.iter() {
-        let d = i.open_delay_s.max(i.close_delay_s) + R::of(8.0) * i.rise_s.max(i.decay_s);
+        let d = match i.syringe.filter(|_| m.syringes) {
+            // A syringe's switch and its tail are over well before 90 % of its response.
+            Some(sy) => R::of(libm::pow(
+                core::f64::consts::LN_10 / sy.lag_k.to_f64(),
+                1.0 / sy.lag_n.to_f64(),
+            )),
+            None => i.open_delay_s.max(i.close_delay_s) + R::of(8.0) * i.rise_s.max(i.decay_s),
+        };
         worst = worst.max(d);
     }
     t += worst;

@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// A motion axis.
+/// A motion axis: the head's X, Y, Z, or the plunger of syringe inlet i (`E(i)`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Axis {
     /// X
@@ -13,14 +13,24 @@ pub enum Axis {
     Y,
     /// Z
     Z,
+    /// Plunger of syringe inlet i.
+    E(u8),
 }
 
+/// Axes an `Outputs` may see: X, Y, Z and one plunger per possible inlet.
+pub const AXES: usize = 3 + crate::config::MAX_CONFIG_INLETS;
+
 impl Axis {
-    /// All axes in index order.
+    /// The head's axes in index order.
     pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
-    /// 0, 1, 2 for X, Y, Z.
+    /// 0, 1, 2 for X, Y, Z; 3 + i for `E(i)`.
     pub fn index(self) -> usize {
-        self as usize
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+            Axis::E(i) => 3 + i as usize,
+        }
     }
 }
 
@@ -37,18 +47,18 @@ pub trait Outputs {
 }
 
 /// An `Outputs` that keeps the commanded state and counters instead of driving pins.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RecordingOutputs {
     /// Net step position per axis (forward minus backward).
-    pub position: [i64; 3],
+    pub position: [i64; AXES],
     /// Pulses emitted per axis, either direction.
-    pub pulses: [u64; 3],
+    pub pulses: [u64; AXES],
     /// Direction changes per axis (between pulses; the first direction is not a change).
-    pub reversals: [u64; 3],
+    pub reversals: [u64; AXES],
     /// Largest pulse count in one cycle, per axis.
-    pub max_per_cycle: [u32; 3],
+    pub max_per_cycle: [u32; AXES],
     /// Current direction per axis (true: forward).
-    pub forward: [bool; 3],
+    pub forward: [bool; AXES],
     /// Valve state, bit i for inlet i.
     pub valves: u32,
     /// Valve state changes commanded.
@@ -57,9 +67,24 @@ pub struct RecordingOutputs {
     pub drivers: bool,
 }
 
+impl Default for RecordingOutputs {
+    fn default() -> Self {
+        RecordingOutputs {
+            position: [0; AXES],
+            pulses: [0; AXES],
+            reversals: [0; AXES],
+            max_per_cycle: [0; AXES],
+            forward: [false; AXES],
+            valves: 0,
+            valve_changes: 0,
+            drivers: false,
+        }
+    }
+}
+
 impl Outputs for RecordingOutputs {
     fn step(&mut self, axis: Axis, forward: bool, count: u32) {
-        let a = axis.index();
+        let a = axis.index().min(AXES - 1);
         if forward != self.forward[a] {
             if self.pulses[a] > 0 {
                 self.reversals[a] += 1;

@@ -299,14 +299,27 @@ impl Meter {
                 .position(|(a, b)| a != b)
                 .unwrap_or(materials_landed.len().min(materials_design.len()));
             let lo = first.saturating_sub(2);
+            // Alternating sequences hide where they part: name the shortest landed runs,
+            // the likely blips.
+            let mut short: Vec<(f64, f64, u8)> = runs
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let end = runs.get(k + 1).map(|n| n.0).unwrap_or(trace.s + trace.extra);
+                    (end - r.0, r.0, r.1)
+                })
+                .collect();
+            short.sort_by(|a, b| a.0.total_cmp(&b.0));
+            short.truncate(3);
             self.metrics.mismatches.push(format!(
-                "bead {bi} (commands {}..={}): {} design runs, {} landed; first difference at run {first}: design {:?}, landed {:?}",
+                "bead {bi} (commands {}..={}): {} design runs, {} landed; first difference at run {first}: design {:?}, landed {:?}; shortest landed runs (length, s, material) {:?}",
                 design.commands.0,
                 design.commands.1,
                 materials_design.len(),
                 materials_landed.len(),
                 &design.runs[lo..(first + 3).min(design.runs.len())],
                 &runs[lo..(first + 3).min(runs.len())],
+                short,
             ));
             return;
         }

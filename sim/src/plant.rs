@@ -78,9 +78,32 @@ pub struct Landed {
     pub material: u8,
 }
 
+/// A syringe inlet: plunger rate changes at exact times; outflow lags by the Weibull
+/// response.
+#[derive(Clone, Debug)]
+struct SyringeLine {
+    k: f64,
+    n: f64,
+    rate: f64,
+    running: bool,
+    /// (time, +-rate) of each start and stop.
+    events: Vec<(f64, f64)>,
+}
+
+impl SyringeLine {
+    fn q_at(&self, t: f64) -> f64 {
+        self.events
+            .iter()
+            .map(|&(te, dr)| dr * dollop::config::Syringe::response(self.k, self.n, t - te))
+            .sum::<f64>()
+            .max(0.0)
+    }
+}
+
 /// The plant.
 #[derive(Clone, Debug)]
 pub struct Plant {
+    syringes: Vec<SyringeLine>,
     lines: Vec<Line>,
     laws: Vec<FlowLaw<f64>>,
     slugs: VecDeque<Slug>,
@@ -110,7 +133,17 @@ impl Plant {
             .unwrap_or(c.line_pitch_mm as f64 * c.layer_height_mm as f64);
         let mut lines = Vec::new();
         let mut laws = Vec::new();
+        let mut syringes = Vec::new();
         for inlet in config.inlets.iter() {
+            if let Some(sy) = inlet.syringe {
+                syringes.push(SyringeLine {
+                    k: sy.lag_k as f64,
+                    n: sy.lag_n as f64,
+                    rate: speed * s,
+                    running: false,
+                    events: Vec::new(),
+                });
+            }
             let law = FlowLaw::<f64>::new(&inlet.rheology, d);
             let supply = match inlet.pressure_kpa {
                 dollop::config::Pressure::Kpa(k) => k as f64 * 1e3,
@@ -137,7 +170,11 @@ impl Plant {
             material,
             start: 0.0,
         });
+        if syringes.len() != lines.len() {
+            syringes.clear();
+        }
         Ok(Plant {
+            syringes,
             lines,
             laws,
             slugs,
@@ -172,6 +209,14 @@ impl Plant {
     /// Valve command at the current time: acts after the valve's dead time.
     pub fn command(&mut self, inlet: usize, open: bool) {
         let t = self.t;
+        if let Some(sy) = self.syringes.get_mut(inlet) {
+            if sy.running != open {
+                sy.running = open;
+                let dr = if open { sy.rate } else { -sy.rate };
+                sy.events.push((t, dr));
+            }
+            return;
+        }
         let Some(l) = self.lines.get_mut(inlet) else {
             return;
         };
@@ -193,6 +238,28 @@ impl Plant {
             material: self.landing(),
             ..Default::default()
         };
+        if !self.syringes.is_empty() {
+            // Outflow does not depend on the channel: Simpson over each step; the syringe
+            // supplying more at mid-step feeds it.
+            while self.t < t_end - 1e-15 {
+                let t1 = (self.t + h).min(t_end);
+                let tm = 0.5 * (self.t + t1);
+                let mut dv = 0.0;
+                let mut best = (0.0, 0usize);
+                for (i, sy) in self.syringes.iter().enumerate() {
+                    let qm = sy.q_at(tm);
+                    dv += (sy.q_at(self.t) + 4.0 * qm + sy.q_at(t1)) * (t1 - self.t) / 6.0;
+                    if qm > best.0 {
+                        best = (qm, i);
+                    }
+                }
+                self.t = t1;
+                self.push_feed(dv, best.1 as u8, &mut landed);
+            }
+            self.q_last = self.syringes.iter().map(|sy| sy.q_at(self.t)).sum();
+            landed.material = self.landing();
+            return landed;
+        }
         while self.t < t_end - 1e-15 {
             // Next valve event, if before the step end.
             let next_event = self
@@ -286,7 +353,14 @@ impl Plant {
         let (_, feeding) = self.junction(self.t);
         let m = feeding
             .map(|f| f as u8)
-            .unwrap_or_else(|| self.slugs.back().unwrap().material);
+            .unwrap_or_else(|| self.slugs.back().map(|s| s.material).unwrap_or(0));
+        self.push_feed(dv, m, landed);
+    }
+
+    fn push_feed(&mut self, dv: f64, m: u8, landed: &mut Landed) {
+        if dv <= 0.0 {
+            return;
+        }
         if self.slugs.back().map(|s| s.material) != Some(m) {
             self.slugs.push_back(Slug {
                 material: m,

@@ -7,6 +7,7 @@ pub mod channel;
 pub mod lines;
 pub mod predict;
 pub mod solve;
+pub mod syringe;
 
 use crate::config::Machine;
 use crate::real::Real;
@@ -14,6 +15,7 @@ use crate::rheology::FlowLaw;
 use crate::vol::Vol;
 use channel::{Channel, ChannelFull};
 use lines::{Line, LineParams};
+use syringe::{Plunger, Response};
 
 /// Longest stretch, in cycles, that the predictor integrates in one piece.
 pub const MAX_CHUNK: usize = 64;
@@ -72,6 +74,10 @@ pub struct FlowModel<R, const N: usize> {
     feeding: Option<u8>,
     all_linear: bool,
     commanded: u32,
+    /// Syringe inlets (empty for a pneumatic machine): response tables and plungers.
+    responses: heapless::Vec<Response<R>, N>,
+    plungers: heapless::Vec<Plunger<R>, N>,
+    rates: [R; N],
 }
 
 impl<R: Real, const N: usize> FlowModel<R, N> {
@@ -83,7 +89,15 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         let mut lines = heapless::Vec::new();
         let mut laws = heapless::Vec::new();
         let mut all_linear = true;
-        for inlet in machine.inlets.iter() {
+        let mut responses = heapless::Vec::new();
+        let mut plungers = heapless::Vec::new();
+        let mut rates = [R::ZERO; N];
+        for (i, inlet) in machine.inlets.iter().enumerate() {
+            if let Some(sy) = inlet.syringe.filter(|_| machine.syringes) {
+                let _ = responses.push(Response::new(sy.lag_k.to_f64(), sy.lag_n.to_f64()));
+                let _ = plungers.push(Plunger::default());
+                rates[i] = sy.rate;
+            }
             let p = LineParams::new(inlet, dt);
             let mut pw: Powers<R> = [[R::ONE; MAX_CHUNK + 1]; 2];
             for (row, a) in [p.alpha_rise, p.alpha_decay].into_iter().enumerate() {
@@ -111,6 +125,9 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             feeding: None,
             all_linear,
             commanded: 0,
+            responses,
+            plungers,
+            rates,
         }
     }
 
@@ -124,7 +141,59 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                 m |= 1 << i;
             }
         }
+        // A syringe's plunger starts or stops with the next cycle; its lag is in F.
+        for (i, pl) in self.plungers.iter_mut().enumerate() {
+            pl.command(mask & (1 << i) != 0, self.next, self.rates[i]);
+        }
         self.commanded = m;
+    }
+
+    /// True for a machine of syringe inlets.
+    pub fn syringes(&self) -> bool {
+        !self.plungers.is_empty()
+    }
+    /// Syringe response tables (empty when pneumatic).
+    pub fn responses(&self) -> &[Response<R>] {
+        &self.responses
+    }
+    /// Syringe plungers (empty when pneumatic).
+    pub fn plungers(&self) -> &[Plunger<R>] {
+        &self.plungers
+    }
+    /// Plunger rate of each syringe inlet while it feeds, mm^3/s.
+    pub fn rates(&self) -> &[R; N] {
+        &self.rates
+    }
+
+    /// One cycle of a syringe machine: every plunger's outflow at mid-cycle; the largest
+    /// feeds the channel (a mixed zone is attributed to whichever supplies more).
+    fn step_syringes(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
+        let k = self.next;
+        self.next += 1;
+        let dt = self.dt;
+        let mut total = R::ZERO;
+        let mut best: Option<(usize, R)> = None;
+        for (i, (pl, resp)) in self.plungers.iter_mut().zip(self.responses.iter()).enumerate() {
+            let q = pl.flow_mid(k, dt, resp);
+            total += q;
+            if q > R::ZERO && best.is_none_or(|(_, b)| q > b) {
+                best = Some((i, q));
+            }
+        }
+        let dv = Vol::from_mm3(total * dt);
+        let mut changes = 0;
+        if let (Some((f, _)), true) = (best, dv.0 > 0) {
+            self.channel.feed(f as u8)?;
+            changes = self.channel.advance(dv);
+            self.feeding = Some(f as u8);
+        }
+        self.q = dv.mm3::<R>() * self.inv_dt;
+        Ok(CycleFlow {
+            dv,
+            q: self.q,
+            feeding: best.map(|b| b.0 as u8),
+            landed_changes: changes,
+        })
     }
 
     /// The valve mask last commanded.
@@ -135,6 +204,9 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
 
     /// Integrates one control cycle.
     pub fn step(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
+        if !self.plungers.is_empty() {
+            return self.step_syringes();
+        }
         let k = self.next;
         self.next += 1;
         let dt = self.dt;
@@ -253,8 +325,18 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         out
     }
 
-    /// Instantaneous flow at the current line pressures and channel content, mm^3/s.
+    /// Instantaneous flow at the current line pressures and channel content (or the
+    /// syringes' outflow), mm^3/s.
     pub fn flow_now(&self) -> R {
+        if !self.plungers.is_empty() {
+            let at = R::from_u32(self.next.min(u32::MAX as u64) as u32);
+            return self
+                .plungers
+                .iter()
+                .zip(self.responses.iter())
+                .map(|(p, r)| p.flow_at(at, self.dt, r))
+                .fold(R::ZERO, |a, b| a + b);
+        }
         let p = self.junction_pa();
         if p <= R::ZERO {
             return R::ZERO;
@@ -318,7 +400,8 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     }
     /// True while some valve is open or a line still holds pressure above `p_min`.
     pub fn active(&self, p_min: R) -> bool {
-        self.lines
+        self.plungers.iter().any(|p| p.running || p.len > 0)
+            || self.lines
             .iter()
             .any(|l| l.open || l.commanded || !l.pending.is_empty() || l.p > p_min)
     }

@@ -5,6 +5,7 @@
 //! budget on it. Deciding when to act on the answer is the executor's job.
 
 use super::lines::{Line, LineParams, PENDING_CAP};
+use super::syringe::Plunger;
 use super::{solve, FlowModel, MAX_CHUNK};
 use crate::real::Real;
 
@@ -122,6 +123,9 @@ pub struct Prediction<R, const N: usize> {
     vol: R,
     q: R,
     p_scale: R,
+    /// Syringe machines: the plungers as they would be after the hypothetical command.
+    plungers: [Plunger<R>; N],
+    n_plungers: usize,
 }
 
 impl<R: Real, const N: usize> Default for Prediction<R, N> {
@@ -148,6 +152,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             vol: R::ZERO,
             q: R::ZERO,
             p_scale: R::ZERO,
+            plungers: [Plunger::default(); N],
+            n_plungers: 0,
         }
     }
 
@@ -184,6 +190,12 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.vol = R::ZERO;
         self.q = model.q();
         self.p_scale = p_scale;
+        self.n_plungers = model.plungers().len().min(N);
+        for (i, (dst, src)) in self.plungers.iter_mut().zip(model.plungers()).enumerate() {
+            *dst = *src;
+            dst.command(mask & (1 << i) != 0, next, model.rates()[i]);
+            self.p_scale = self.p_scale.max(model.rates()[i]);
+        }
     }
 
     /// Starts predicting `goal` (see `restart`).
@@ -204,6 +216,9 @@ impl<R: Real, const N: usize> Prediction<R, N> {
 
     /// Integrates at most `budget` chunks; `Some` once finished.
     pub fn advance(&mut self, model: &FlowModel<R, N>, budget: u32) -> Option<Outcome<R>> {
+        if self.n_plungers > 0 {
+            return self.advance_syringes(model, budget);
+        }
         let params = model.params();
         let powers = model.powers();
         let dt = model.dt();
@@ -316,6 +331,78 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 };
                 return Some(Outcome::Volume(self.vol + tail));
             }
+        }
+        None
+    }
+
+    /// The syringe form of `advance`: outflows are sums of tabulated responses, so each
+    /// chunk is a Simpson integral of them; the goal's syringe takes over where its
+    /// outflow overtakes every other one's and they are all past their peak.
+    fn advance_syringes(&mut self, model: &FlowModel<R, N>, budget: u32) -> Option<Outcome<R>> {
+        let dt = model.dt();
+        let resp = model.responses();
+        let n = self.n_plungers;
+        let to = match self.goal {
+            Goal::Switch(t) => t as usize,
+            Goal::Stop => usize::MAX,
+        };
+        let flows = |pl: &[Plunger<R>], at: R, out: &mut [R; N]| {
+            for (i, (p, r)) in pl.iter().zip(resp).enumerate() {
+                out[i] = p.flow_at(at, dt, r);
+            }
+        };
+        if to == usize::MAX {
+            // A stop has a closed form: each change's volume still to come.
+            let at = R::from_u32(self.k.min(u32::MAX as u64) as u32);
+            let mut v = R::ZERO;
+            for (p, r) in self.plungers[..n].iter().zip(resp) {
+                v += p.remaining(at, dt, r);
+            }
+            return Some(Outcome::Volume(self.vol + v));
+        }
+        for _ in 0..budget {
+            if self.k - self.start > HORIZON_CYCLES {
+                return Some(Outcome::Never);
+            }
+            let j = MAX_CHUNK as u64;
+            let k0 = R::from_u32((self.k).min(u32::MAX as u64) as u32);
+            let half = R::from_u32((j / 2) as u32);
+            let (mut q0, mut qm, mut q1) = ([R::ZERO; N], [R::ZERO; N], [R::ZERO; N]);
+            flows(&self.plungers[..n], k0, &mut q0);
+            flows(&self.plungers[..n], k0 + half, &mut qm);
+            flows(&self.plungers[..n], k0 + half + half, &mut q1);
+            let span = dt * half * R::TWO;
+            let mut dv = R::ZERO;
+            let (mut lead0, mut other0, mut lead1, mut other1) = (R::ZERO, R::ZERO, R::ZERO, R::ZERO);
+            let mut settled = true;
+            for i in 0..n {
+                dv += (q0[i] + R::of(4.0) * qm[i] + q1[i]) * span * R::of(1.0 / 6.0);
+                if i == to {
+                    lead0 = q0[i];
+                    lead1 = q1[i];
+                    settled &= self.plungers[i].running && q1[i] >= q0[i];
+                } else {
+                    other0 = other0.max(q0[i]);
+                    other1 = other1.max(q1[i]);
+                    settled &= !self.plungers[i].running && q1[i] <= q0[i];
+                }
+            }
+            if to != usize::MAX {
+                if lead0 > R::ZERO && lead0 >= other0 && settled {
+                    return Some(Outcome::Volume(self.vol));
+                }
+                if lead1 > R::ZERO && lead1 >= other1 && settled {
+                    let (m0, m1) = (other0 - lead0, other1 - lead1);
+                    let f = if m0 > m1 {
+                        (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
+                    } else {
+                        R::ZERO
+                    };
+                    return Some(Outcome::Volume(self.vol + f * dv));
+                }
+            }
+            self.k += j;
+            self.vol += dv;
         }
         None
     }
