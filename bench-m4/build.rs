@@ -19,6 +19,7 @@ fn main() {
     for (name, file) in [
         ("valves", "seed-paper-valves.toml"),
         ("pastes", "food-pastes.toml"),
+        ("syringes", "syringes.toml"),
     ] {
         let path = root.join("configs").join(file);
         println!("cargo:rerun-if-changed={}", path.display());

@@ -777,10 +777,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
     fn cycle_once(&mut self) -> Result<Vol, Fault> {
         self.cycle += 1;
-        let running = self.model.commanded();
-        for (i, v) in self.plunger_vol.iter_mut().enumerate() {
-            if running & (1 << i) != 0 {
-                *v += self.plunger_per_cycle[i];
+        if self.machine.syringes {
+            let running = self.model.commanded();
+            for (i, v) in self.plunger_vol.iter_mut().enumerate() {
+                if running & (1 << i) != 0 {
+                    *v += self.plunger_per_cycle[i];
+                }
             }
         }
         let flow = self.model.step()?;

@@ -1,7 +1,8 @@
 //! Measures the executor's control cycle on a Cortex-M4F under QEMU: runs a whole job
 //! (a chessboard: a switch every millimetre, corners every row) tick by tick with SysTick
-//! timing each tick, for the seed printhead with real valves (Newtonian) and for
-//! power-law pastes, and prints the mean and worst instructions per tick.
+//! timing each tick, for the seed printhead with real valves (Newtonian), for
+//! power-law pastes and for stepper syringes, and prints the mean and worst instructions
+//! per tick.
 #![no_std]
 #![no_main]
 
@@ -13,6 +14,7 @@ use dollop::{Axis, Command, Config, Executor, Outputs, RunState};
 
 static VALVES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/valves.config"));
 static PASTES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/pastes.config"));
+static SYRINGES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/syringes.config"));
 static HEAD: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/job.head"));
 static BODY: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/job.body"));
 
@@ -29,7 +31,7 @@ impl Outputs for Null {
     fn step(&mut self, axis: Axis, forward: bool, count: u32) {
         self.sum = self
             .sum
-            .wrapping_add(count * (axis as u32 + 1) + forward as u32);
+            .wrapping_add(count * (axis.index() as u32 + 1) + forward as u32);
     }
     fn valve(&mut self, inlet: u8, open: bool) {
         self.sum = self.sum.wrapping_add(inlet as u32 * 7 + open as u32);
@@ -197,20 +199,17 @@ fn main() -> ! {
         counts,
         counts as u64 * 10 / COUNTS_PER_INSN as u64
     );
-    let limit: Option<&str> = option_env!("BENCH_ONLY");
-    if limit != Some("pastes") {
-        run(
-            "seed printhead, real valves (Newtonian)",
-            VALVES,
-            &mut cp.SYST,
-        );
-    }
-    if limit != Some("valves") {
-        run(
-            "food pastes, power law n = 0.6 / 0.45",
-            PASTES,
-            &mut cp.SYST,
-        );
+    // BENCH_ONLY=valves|pastes|syringes runs just one machine.
+    let only: Option<&str> = option_env!("BENCH_ONLY");
+    let machines: [(&str, &str, &[u8]); 3] = [
+        ("valves", "seed printhead, real valves (Newtonian)", VALVES),
+        ("pastes", "food pastes, power law n = 0.6 / 0.45", PASTES),
+        ("syringes", "two stepper syringes (Weibull lag)", SYRINGES),
+    ];
+    for (key, name, config) in machines {
+        if only.is_none_or(|o| o == key) {
+            run(name, config, &mut cp.SYST);
+        }
     }
     debug::exit(debug::EXIT_SUCCESS);
     loop {
