@@ -7,6 +7,7 @@
 
 pub mod command;
 pub mod config;
+pub mod device;
 pub mod executor;
 pub mod flow_model;
 mod fmt;
@@ -18,6 +19,7 @@ pub mod real;
 pub mod rheology;
 pub mod step_gen;
 pub mod vol;
+pub mod wire;
 
 pub use command::Command;
 pub use config::{Config, ConfigError, Machine};

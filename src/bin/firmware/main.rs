@@ -1,0 +1,267 @@
+//! dollop's STM32F405 firmware: embassy glue around the board-independent
+//! `dollop::device`. Interrupt priorities, highest first: e-stop (EXTI, forces the safe
+//! state through registers), step pulses (TIM3, 100 kHz), the control loop (UART5 used as
+//! a software interrupt, pended every 10th step tick), then USB and the thread-mode
+//! executor that runs the link. The control loop and the link share only `shared`'s
+//! queues and snapshot. Pins and clocks come from `board`.
+#![no_std]
+#![no_main]
+
+mod board;
+mod control;
+mod shared;
+mod step;
+mod store;
+mod wdg;
+
+use control::{ControlCtx, PinOutputs, ESTOP_LATCH};
+use core::cell::RefCell;
+use core::sync::atomic::Ordering;
+use defmt_rtt as _;
+use dollop::device::{BoardInfo, Control, Link, ResetCause};
+use dollop::wire;
+use embassy_executor::Spawner;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::peripherals::USB_OTG_FS;
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::low_level::{RoundTo, Timer};
+use embassy_stm32::usb::Driver;
+use embassy_stm32::{bind_interrupts, interrupt, pac, usb};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_time::{with_timeout, Duration, Instant};
+use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
+use embassy_usb::UsbDevice;
+use static_cell::StaticCell;
+use step::Stepper;
+use store::FlashStore;
+
+bind_interrupts!(struct Irqs {
+    OTG_FS => usb::InterruptHandler<USB_OTG_FS>;
+});
+
+type UsbDriver = Driver<'static, USB_OTG_FS>;
+
+/// Handed to the interrupts once at start (a reference: the contexts live in statics).
+static STEPPER: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Stepper>>> =
+    Mutex::new(RefCell::new(None));
+static CONTROL: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut ControlCtx>>> =
+    Mutex::new(RefCell::new(None));
+
+#[interrupt]
+fn TIM3() {
+    static mut S: Option<&'static mut Stepper> = None;
+    if S.is_none() {
+        *S = STEPPER.lock(|c| c.borrow_mut().take());
+    }
+    if let Some(s) = S {
+        if s.on_tick() {
+            interrupt::UART5.pend();
+        }
+    }
+}
+
+#[interrupt]
+fn UART5() {
+    static mut C: Option<&'static mut ControlCtx> = None;
+    if C.is_none() {
+        *C = CONTROL.lock(|c| c.borrow_mut().take());
+    }
+    if let Some(c) = C {
+        c.on_period();
+    }
+}
+
+#[interrupt]
+fn EXTI15_10() {
+    let line = board::ESTOP.pin as usize;
+    if pac::EXTI.pr(0).read().line(line) {
+        pac::EXTI.pr(0).write(|w| w.set_line(line, true));
+        // Straight to the safe state through the registers; the control loop halts on the
+        // latch at its next tick.
+        board::force_safe_raw();
+        ESTOP_LATCH.store(true, Ordering::Release);
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    // Nothing else may run: no interrupt may reopen a valve.
+    cortex_m::interrupt::disable();
+    board::force_safe_raw();
+    // The location only: formatting the message would pull float formatting into flash.
+    if let Some(l) = info.location() {
+        defmt::error!("panic at {}:{}", l.file(), l.line());
+    }
+    // The watchdog is no longer fed: it resets the chip, which starts halted and says why.
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+#[embassy_executor::main]
+async fn main(spawner: Spawner) {
+    // Before anything else: valves closed, drivers disabled.
+    board::safe_at_reset();
+    let reset = if wdg::caused_reset() {
+        ResetCause::Watchdog
+    } else {
+        ResetCause::PowerOn
+    };
+    let p = embassy_stm32::init(board::clocks());
+    // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
+    interrupt::TIM5.set_priority(Priority::P4);
+    wdg::start();
+    defmt::info!(
+        "dollop firmware {} on {}",
+        env!("CARGO_PKG_VERSION"),
+        board::NAME
+    );
+
+    let parts = board::parts(p);
+    let mut out = PinOutputs {
+        valves: parts.valves,
+        enable: parts.enable,
+    };
+    let mut control = Control::new(reset);
+    control.power_up(&mut out);
+    estop_interrupt();
+
+    static CTX: StaticCell<ControlCtx> = StaticCell::new();
+    let ctx = CTX.init(ControlCtx::new(control, out, parts.endstops, parts.estop));
+    CONTROL.lock(|c| *c.borrow_mut() = Some(ctx));
+
+    let timer = Timer::new(parts.step_timer);
+    timer.set_frequency(Hertz(board::STEP_TICK_HZ), RoundTo::Faster);
+    timer.enable_update_interrupt(true);
+    static STEP: StaticCell<Stepper> = StaticCell::new();
+    let stepper = STEP.init(Stepper::new(timer, parts.step, parts.dir));
+    stepper.timer.start();
+    STEPPER.lock(|c| *c.borrow_mut() = Some(stepper));
+    interrupt::EXTI15_10.set_priority(Priority::P0);
+    interrupt::TIM3.set_priority(Priority::P1);
+    interrupt::UART5.set_priority(Priority::P2);
+    // SAFETY: the three handlers touch only what was handed to them above through the
+    // critical-section mutexes, atomics and GPIO set/reset registers; no priority-based
+    // locking exists in this firmware, so enabling them cannot break a critical section.
+    unsafe {
+        interrupt::EXTI15_10.enable();
+        interrupt::TIM3.enable();
+        interrupt::UART5.enable();
+    }
+
+    // USB CDC-ACM.
+    static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
+    let mut usb_config = usb::Config::default();
+    // The board has its own supply: it must watch VBUS (PA9) to see the cable.
+    usb_config.vbus_detection = true;
+    let (otg, dp, dm) = parts.usb;
+    let driver = Driver::new_fs(otg, Irqs, dp, dm, EP_OUT.init([0; 256]), usb_config);
+    interrupt::OTG_FS.set_priority(Priority::P5);
+    let mut dev_config = embassy_usb::Config::new(wire::USB_VID, wire::USB_PID);
+    dev_config.manufacturer = Some("dollop");
+    dev_config.product = Some(wire::USB_PRODUCT);
+    dev_config.serial_number = Some(board::NAME);
+    dev_config.self_powered = true;
+    dev_config.max_power = 100;
+    dev_config.max_packet_size_0 = 64;
+    static CONFIG_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+    static BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+    static CONTROL_BUF: StaticCell<[u8; 64]> = StaticCell::new();
+    static CDC_STATE: StaticCell<State> = StaticCell::new();
+    let mut builder = embassy_usb::Builder::new(
+        driver,
+        dev_config,
+        CONFIG_DESC.init([0; 256]),
+        BOS_DESC.init([0; 256]),
+        &mut [],
+        CONTROL_BUF.init([0; 64]),
+    );
+    let class = CdcAcmClass::new(&mut builder, CDC_STATE.init(State::new()), 64);
+    let usb = builder.build();
+
+    let info = BoardInfo {
+        name: board::NAME,
+        firmware: env!("CARGO_PKG_VERSION"),
+        max_step_hz: board::MAX_STEP_HZ as f32,
+    };
+    let link = Link::new(FlashStore::new(parts.flash), info);
+    match usb_task(usb) {
+        Ok(t) => spawner.spawn(t),
+        Err(_) => defmt::error!("usb task did not spawn"),
+    }
+    match link_task(class, link) {
+        Ok(t) => spawner.spawn(t),
+        Err(_) => defmt::error!("link task did not spawn"),
+    }
+}
+
+/// E-stop on EXTI line 13, port C, rising edge (the normally-closed switch opens).
+fn estop_interrupt() {
+    let line = board::ESTOP.pin as usize;
+    pac::RCC.apb2enr().modify(|w| w.set_syscfgen(true));
+    pac::SYSCFG
+        .exticr(line / 4)
+        .modify(|w| w.set_exti(line % 4, board::ESTOP.port));
+    pac::EXTI.rtsr(0).modify(|w| w.set_line(line, true));
+    pac::EXTI.imr(0).modify(|w| w.set_line(line, true));
+}
+
+#[embassy_executor::task]
+async fn usb_task(mut usb: UsbDevice<'static, UsbDriver>) -> ! {
+    usb.run().await
+}
+
+/// The link: USB packets in, replies out, and the link's background work at least every
+/// millisecond (it feeds the running job, so it never waits long on USB).
+#[embassy_executor::task]
+async fn link_task(mut class: CdcAcmClass<'static, UsbDriver>, mut link: Link<FlashStore>) -> ! {
+    let mut port = shared::LinkEnd;
+    let mut rx = [0u8; 64];
+    let mut tx = [0u8; 64];
+    let mut connected = false;
+    loop {
+        let now = Instant::now().as_micros();
+        if !connected {
+            if with_timeout(Duration::from_millis(1), class.wait_connection())
+                .await
+                .is_ok()
+                && class.dtr()
+            {
+                connected = true;
+            }
+            link.poll(now, &mut port);
+            continue;
+        }
+        match with_timeout(Duration::from_millis(1), class.read_packet(&mut rx)).await {
+            Ok(Ok(n)) => link.receive(&rx[..n], now, &mut port),
+            Ok(Err(_)) => connected = false,
+            Err(_) => {}
+        }
+        if !class.dtr() {
+            // The host closed the port.
+            connected = false;
+        }
+        if !connected {
+            link.disconnected(&mut port);
+            continue;
+        }
+        let mut last = 0;
+        loop {
+            let n = link.take_tx(&mut tx);
+            if n == 0 {
+                break;
+            }
+            last = n;
+            if class.write_packet(&tx[..n]).await.is_err() {
+                connected = false;
+                break;
+            }
+        }
+        if connected && last == tx.len() {
+            // A full last packet needs a zero-length one to end the transfer.
+            let _ = class.write_packet(&[]).await;
+        }
+        link.poll(Instant::now().as_micros(), &mut port);
+    }
+}

@@ -1,0 +1,114 @@
+//! The board's application logic, independent of any board: `Link` (USB requests, job
+//! upload into a `JobStore`, feeding the running job) and `Control` (the control loop:
+//! executor, homing, jog, valve test, e-stop, faults, one path to the safe state). They
+//! share only what `ToControl`/`FromLink` carry: a queue of orders, a queue of job
+//! records, a one-slot config mailbox, and the status snapshot. Pins, clocks, USB and
+//! interrupts are the firmware's; `SimBoard` wires both halves together for host tests.
+
+pub mod control;
+pub mod link;
+pub mod safety;
+pub mod sim;
+pub mod store;
+
+pub use control::{Control, Inputs, ResetCause, Tick};
+pub use link::{BoardInfo, Link};
+pub use safety::force_safe;
+pub use sim::{Queues, SimBoard};
+pub use store::{JobStore, RamStore};
+
+use crate::command::Command;
+use crate::config::Config;
+use crate::outputs::Axis;
+use crate::wire::{LinkLossPolicy, Settings, Snapshot};
+
+/// Orders in the control queue it holds (an order is answered before the next one is
+/// taken, so a handful covers every burst the link makes).
+pub const ORDER_QUEUE: usize = 8;
+/// Job records in the job queue: 64 commands of 16 bytes, 1 KiB. The link refills it every
+/// poll; the control loop drains it into the executor's 256-item plan.
+pub const JOB_QUEUE: usize = 64;
+/// Commands the injected lead-in puts before a job's body: lift to the safe height, move
+/// over the start point, lower onto it.
+pub const LEAD_IN: u32 = 3;
+
+/// What the link asks of the control loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Order {
+    /// Begin job number `epoch`; its commands follow in the job queue.
+    Start {
+        /// Job number; job records of other numbers are dropped.
+        epoch: u8,
+        /// Where the job begins, micrometres.
+        start_um: [i32; 3],
+        /// Material the channel is primed with.
+        initial_material: u8,
+    },
+    /// Finish the bead, then hold.
+    Pause,
+    /// Continue.
+    Resume,
+    /// Stop now, drivers off.
+    Abort,
+    /// Emergency stop from the host.
+    EStop,
+    /// Acknowledge a halt.
+    ClearFault,
+    /// Home all axes.
+    Home,
+    /// Move one axis by hand.
+    Jog {
+        /// The axis.
+        axis: Axis,
+        /// Distance, micrometres.
+        um: i32,
+    },
+    /// Valve test.
+    Valve {
+        /// Inlet.
+        inlet: u8,
+        /// Open or close.
+        open: bool,
+    },
+    /// The host link was lost.
+    LinkLost(LinkLossPolicy),
+    /// New board settings.
+    Settings(Settings),
+    /// A config waits in the mailbox.
+    LoadConfig,
+}
+
+/// One job command for the control loop, tagged with its job number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JobRecord {
+    /// Job number (`Order::Start::epoch`).
+    pub epoch: u8,
+    /// The command.
+    pub cmd: Command,
+}
+
+/// The link's end of what it shares with the control loop.
+pub trait ToControl {
+    /// Queues an order; gives it back when the queue is full.
+    fn order(&mut self, order: Order) -> Result<(), Order>;
+    /// Queues a job command; gives it back when the queue is full.
+    fn command(&mut self, record: JobRecord) -> Result<(), JobRecord>;
+    /// Free places in the job queue.
+    fn command_room(&self) -> usize;
+    /// Puts a config in the mailbox; false if the previous one was not taken yet.
+    fn post_config(&mut self, config: &Config) -> bool;
+    /// The control loop's latest snapshot.
+    fn snapshot(&self) -> Snapshot;
+}
+
+/// The control loop's end.
+pub trait FromLink {
+    /// The next order, if any.
+    fn next_order(&mut self) -> Option<Order>;
+    /// The next job command, if any.
+    fn next_command(&mut self) -> Option<JobRecord>;
+    /// The config in the mailbox, if any.
+    fn take_config(&mut self) -> Option<Config>;
+    /// Publishes the snapshot.
+    fn publish(&mut self, snapshot: &Snapshot);
+}
