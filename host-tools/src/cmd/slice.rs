@@ -1,10 +1,245 @@
-//! `dollop slice` (not yet implemented).
+//! `dollop slice`: reads designs and a machine config, slices them with the `slicer`
+//! library and writes the job (.dlp), and on request G-code and a preview PNG; prints a
+//! short summary. All the work is the library's; this file maps options and prints.
+
+use crate::slicer::gcode::{self, Style};
+use crate::slicer::image::{parse_colour, Classify, ImageOptions, Mirror, Rotation};
+use crate::slicer::preview::{self, PreviewOptions};
+use crate::slicer::{self, job_file, PathOptions, SliceError, SliceOptions};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop slice`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+#[command(after_help = "Examples:\n  \
+dollop slice logo.png --config machine.toml --width-mm 40 --preview logo-preview.png\n  \
+dollop slice base.stl inlay.stl --config machine.toml --out coaster.dlp --gcode coaster.gcode")]
+pub struct Args {
+    /// Design: one image (PNG, JPEG, BMP; colours are materials) or one STL per material
+    /// in inlet order (ASCII or binary).
+    #[arg(required = true, value_name = "DESIGN")]
+    pub designs: Vec<PathBuf>,
+    /// Machine config (TOML; `dollop config --example` prints one).
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub config: PathBuf,
+    /// Job file to write [default: the first design's name with .dlp, in the current directory].
+    #[arg(long, value_name = "JOB.dlp")]
+    pub out: Option<PathBuf>,
+    /// Also write RepRapFirmware G-code for controllers without volume keying.
+    #[arg(long, value_name = "OUT.gcode")]
+    pub gcode: Option<PathBuf>,
+    /// G-code speed profile: `fine` (ours) or `coarse` (the seed paper's, for comparison).
+    #[arg(long, value_name = "STYLE", default_value = "fine", value_parser = ["fine", "coarse"])]
+    pub gcode_style: String,
+    /// Also write a PNG of the toolpath coloured by material, travel moves dashed.
+    #[arg(long, value_name = "OUT.png")]
+    pub preview: Option<PathBuf>,
+    /// Draw only this layer in the preview (0 = the first) [default: all, top view].
+    #[arg(long, value_name = "N", requires = "preview")]
+    pub preview_layer: Option<usize>,
+    /// Images: layers to stack [default: 1]. Meshes: print at most this many layers.
+    #[arg(long, value_name = "N")]
+    pub layers: Option<usize>,
+    /// Images: printed width in mm (bilinear resampling to the line pitch).
+    #[arg(long, value_name = "MM")]
+    pub width_mm: Option<f64>,
+    /// Images: printed height in mm (with only one of width/height the aspect is kept;
+    /// with neither, one pixel is one line pitch).
+    #[arg(long, value_name = "MM")]
+    pub height_mm: Option<f64>,
+    /// Images: rotate counter-clockwise by this many degrees.
+    #[arg(long, value_enum, default_value = "0")]
+    pub rotate: Rotation,
+    /// Images: mirror across an axis (after rotating).
+    #[arg(long, value_enum, default_value = "none")]
+    pub mirror: Mirror,
+    /// Images: swap the materials (dark/light, or the palette's order).
+    #[arg(long)]
+    pub invert: bool,
+    /// Images: grey level (0-255) dividing material 0 (darker) from material 1.
+    #[arg(
+        long,
+        value_name = "LEVEL",
+        default_value_t = 150,
+        conflicts_with = "palette"
+    )]
+    pub threshold: u8,
+    /// Images: materials by nearest colour instead of threshold: `auto` (the image's main
+    /// colours, darkest first) or `#rrggbb,#rrggbb,...` (inlet 0 first).
+    #[arg(long, value_name = "auto|COLOURS")]
+    pub palette: Option<String>,
+    /// Images: colour not printed (besides transparent pixels), e.g. `#ffffff`.
+    #[arg(long, value_name = "#rrggbb")]
+    pub background: Option<String>,
+    /// Images: RGB distance within which a pixel counts as background.
+    #[arg(long, value_name = "D", default_value_t = 40.0)]
+    pub background_tolerance: f64,
+    /// Lower-left corner of the design on the plate, mm [default: centred].
+    #[arg(long, value_name = "X,Y")]
+    pub origin: Option<String>,
+    /// Priming bead length, mm [default: 2.5 times the bead length between valves and plate, at least 5].
+    #[arg(long, value_name = "MM")]
+    pub prime_mm: Option<f64>,
+    /// Material runs shorter than this are merged into their neighbours, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.1)]
+    pub min_run_mm: f64,
+    /// Rows whose ends lie at most this far apart are joined by a printed connector, mm
+    /// [default: two line pitches].
+    #[arg(long, value_name = "MM")]
+    pub connect_mm: Option<f64>,
+}
+
+impl Args {
+    fn options(&self) -> Result<SliceOptions, SliceError> {
+        let opt = |m: String| SliceError::Option(m);
+        let classify = match self.palette.as_deref() {
+            None => Classify::Threshold(self.threshold),
+            Some("auto") => Classify::AutoPalette,
+            Some(list) => Classify::Palette(
+                list.split(',')
+                    .map(parse_colour)
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(|e| opt(format!("--palette: {e}")))?,
+            ),
+        };
+        let background = self
+            .background
+            .as_deref()
+            .map(parse_colour)
+            .transpose()
+            .map_err(|e| opt(format!("--background: {e}")))?;
+        if !(self.min_run_mm.is_finite() && self.min_run_mm >= 0.0) {
+            return Err(opt(format!(
+                "--min-run-mm {} must be 0 or more",
+                self.min_run_mm
+            )));
+        }
+        let origin = match self.origin.as_deref() {
+            None => None,
+            Some(o) => {
+                let v: Vec<f64> = o.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+                match v[..] {
+                    [x, y] if x.is_finite() && y.is_finite() => Some([x, y]),
+                    _ => return Err(opt(format!("--origin {o:?} must be two numbers X,Y in mm"))),
+                }
+            }
+        };
+        if self.layers == Some(0) {
+            return Err(opt("--layers must be at least 1".into()));
+        }
+        Ok(SliceOptions {
+            image: ImageOptions {
+                width_mm: self.width_mm,
+                height_mm: self.height_mm,
+                rotate: self.rotate,
+                mirror: self.mirror,
+                invert: self.invert,
+                classify,
+                background,
+                background_tolerance: self.background_tolerance,
+                ..ImageOptions::default()
+            },
+            layers: self.layers,
+            path: PathOptions {
+                origin_mm: origin,
+                prime_mm: self.prime_mm,
+                connect_mm: self.connect_mm,
+            },
+            min_run_mm: self.min_run_mm,
+            progress: true,
+        })
+    }
+}
+
+/// The default job path: the first design's stem with `.dlp`, in the current directory.
+fn default_out(design: &Path) -> PathBuf {
+    let stem = design
+        .file_stem()
+        .map(|s| s.to_os_string())
+        .unwrap_or_else(|| "job".into());
+    let mut p = PathBuf::from(stem);
+    p.set_extension("dlp");
+    p
+}
 
 /// Runs `dollop slice`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`dollop slice` is not implemented yet")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let opts = a.options()?;
+    let config = slicer::load_config(&a.config)?;
+    let machine = slicer::validate(&a.config, &config)?;
+    let design = slicer::load_design(&a.designs, &config, &machine, &opts)?;
+    let sliced = slicer::slice_design(&design, &config, &machine, &opts.path)?;
+    // Everything is computed before anything is written; each file is written whole.
+    let gcode = a
+        .gcode
+        .as_ref()
+        .map(|_| {
+            let names: Vec<String> = config
+                .inlets
+                .iter()
+                .map(|i| i.material.to_string())
+                .collect();
+            let style = match a.gcode_style.as_str() {
+                "coarse" => Style::Coarse { segments: 4 },
+                _ => Style::default(),
+            };
+            gcode::export(
+                &sliced.commands,
+                sliced.header.start_um,
+                sliced.header.initial_material,
+                &machine,
+                &names,
+                style,
+            )
+        })
+        .transpose()?;
+    let out = a.out.clone().unwrap_or_else(|| default_out(&a.designs[0]));
+    job_file::write_job(&out, &sliced.header, &sliced.body)?;
+    let job_len = sliced.to_bytes().len();
+    let segs = sliced.header.print_segments.max(1) as f64;
+    let st = &sliced.stats;
+    println!(
+        "{}: {:.1} x {:.1} mm, {} layer(s), {} bead(s), {} print segments, {} material switches, {:.0} mm printed ({:.0} mm priming), {:.0} mm travel",
+        sliced.name,
+        sliced.size_mm[0],
+        sliced.size_mm[1],
+        st.layers,
+        st.beads,
+        sliced.header.print_segments,
+        st.switches,
+        st.print_mm,
+        st.prime_mm,
+        st.travel_mm,
+    );
+    println!(
+        "wrote {} ({} bytes, {:.2} bytes per print segment, {:.2} in the body)",
+        out.display(),
+        job_len,
+        job_len as f64 / segs,
+        sliced.body_bytes_per_segment()
+    );
+    if let (Some(path), Some((text, gs))) = (&a.gcode, gcode) {
+        gcode::write_gcode(path, &text)?;
+        println!(
+            "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches)",
+            path.display(),
+            gs.bytes,
+            gs.bytes as f64 / segs,
+            gs.print_moves,
+            gs.switches
+        );
+    }
+    if let Some(path) = &a.preview {
+        preview::render(
+            path,
+            &sliced.commands,
+            sliced.header.start_um,
+            &PreviewOptions {
+                bead_mm: config.channel.line_pitch_mm as f64,
+                layer: a.preview_layer,
+                ..Default::default()
+            },
+        )?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }

@@ -1,0 +1,318 @@
+//! A time-based simulation of G-code on the core's flow model, to judge G-code the way a
+//! feed-rate controller would print it: the head follows the `G1` moves at their feed
+//! rates (no acceleration), `M42` commands the valves of `dollop::flow_model::FlowModel`,
+//! which is stepped once per control cycle. Measures where material boundaries land along
+//! the print path against the design and the bead cross-section. Not a model of the
+//! firmware (that is the `dollop-sim` crate's), only of the G-code.
+
+use dollop::flow_model::FlowModel;
+use dollop::Machine;
+
+/// One G-code operation the simulation understands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Op {
+    /// Straight move at a feed rate, mm and mm/s.
+    Move {
+        /// Target, mm.
+        to: [f64; 3],
+        /// Speed, mm/s.
+        v: f64,
+    },
+    /// Valve (M42 port) on or off.
+    Valve {
+        /// Port = inlet.
+        port: u8,
+        /// Open.
+        on: bool,
+    },
+    /// Dwell, s.
+    Dwell(f64),
+}
+
+/// Parses the subset of RepRapFirmware G-code that `gcode::export` writes. Unknown lines
+/// and words are skipped.
+pub fn parse(text: &str) -> Vec<Op> {
+    let mut ops = Vec::new();
+    let mut pos = [0.0f64; 3];
+    let mut f = 1.0f64;
+    for line in text.lines() {
+        let code = line.split(';').next().unwrap_or("").trim();
+        let mut words = code.split_whitespace();
+        let Some(cmd) = words.next() else { continue };
+        let word = |w: &str| -> Option<(char, f64)> {
+            let c = w.chars().next()?;
+            w[c.len_utf8()..]
+                .parse::<f64>()
+                .ok()
+                .map(|v| (c.to_ascii_uppercase(), v))
+        };
+        match cmd.to_ascii_uppercase().as_str() {
+            "G0" | "G1" => {
+                let mut to = pos;
+                for w in words {
+                    match word(w) {
+                        Some(('X', v)) => to[0] = v,
+                        Some(('Y', v)) => to[1] = v,
+                        Some(('Z', v)) => to[2] = v,
+                        Some(('F', v)) if v > 0.0 => f = v / 60.0,
+                        _ => {}
+                    }
+                }
+                ops.push(Op::Move { to, v: f });
+                pos = to;
+            }
+            "M42" => {
+                let (mut p, mut s) = (None, None);
+                for w in words {
+                    match word(w) {
+                        // Only ports that are inlets of a 32-bit valve mask count.
+                        Some(('P', v)) if (0.0..32.0).contains(&v) => p = Some(v as u8),
+                        Some(('S', v)) => s = Some(v > 0.0),
+                        _ => {}
+                    }
+                }
+                if let (Some(port), Some(on)) = (p, s) {
+                    ops.push(Op::Valve { port, on });
+                }
+            }
+            "G4" => {
+                let mut t = 0.0;
+                for w in words {
+                    match word(w) {
+                        Some(('P', v)) => t += v * 1e-3,
+                        Some(('S', v)) => t += v,
+                        _ => {}
+                    }
+                }
+                ops.push(Op::Dwell(t));
+            }
+            _ => {}
+        }
+    }
+    ops
+}
+
+/// What a simulated G-code print measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Figures {
+    /// Design boundaries.
+    pub boundaries: usize,
+    /// Material changes that landed.
+    pub landed: usize,
+    /// Largest |landed - design| along the path, mm (each design boundary against the
+    /// nearest landed change to the same material).
+    pub worst_boundary_mm: f64,
+    /// Mean |landed - design|, mm.
+    pub mean_boundary_mm: f64,
+    /// Smallest and largest cross-section / S over windows of `WINDOW_MM` of bead.
+    pub section_range: (f64, f64),
+    /// Largest |cross-section / S - 1|.
+    pub worst_section: f64,
+    /// Simulated print time, s.
+    pub time_s: f64,
+}
+
+/// Bead length over which one cross-section value is taken, mm.
+pub const WINDOW_MM: f64 = 0.05;
+
+/// Runs `gcode` on `machine`'s flow model with the channel primed with `initial`, and
+/// compares landed boundaries with `design` ((s, material) along the print path, as
+/// `gcode::design_boundaries` gives). Stops after `max_time_s` of simulated time.
+pub fn simulate(
+    gcode: &str,
+    machine: &Machine<f64, 4>,
+    initial: u8,
+    design: &[(f64, u8)],
+    max_time_s: f64,
+) -> Figures {
+    let ops = parse(gcode);
+    let mut model: FlowModel<f64, 4> = FlowModel::new(machine, initial);
+    let dt = machine.dt();
+    let area = machine.bead_area;
+    let mut pos = [f64::NAN; 3];
+    let mut mask = 0u32;
+    let mut oi = 0usize;
+    let mut dwell_left = 0.0f64;
+    let mut s_print = 0.0f64;
+    let mut landing = model.channel().landing();
+    let mut landed: Vec<(f64, u8)> = Vec::new();
+    let mut window = (0.0f64, 0.0f64);
+    let mut range = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut t = 0.0;
+    // Valve commands act from the start of the next cycle, like the firmware's.
+    let apply_valves = |oi: &mut usize, mask: &mut u32, model: &mut FlowModel<f64, 4>| {
+        let mut changed = false;
+        while let Some(Op::Valve { port, on }) = ops.get(*oi) {
+            if *on {
+                *mask |= 1 << port;
+            } else {
+                *mask &= !(1 << port);
+            }
+            changed = true;
+            *oi += 1;
+        }
+        if changed {
+            model.command(*mask);
+        }
+    };
+    loop {
+        apply_valves(&mut oi, &mut mask, &mut model);
+        if oi >= ops.len() && model.q() <= 0.0 && t > 0.0 || t > max_time_s {
+            break;
+        }
+        let flow = match model.step() {
+            Ok(f) => f,
+            Err(_) => break,
+        };
+        let dv: f64 = flow.dv.mm3();
+        // Move for one cycle, through as many ops as it takes.
+        let s_before = s_print;
+        let mut budget = dt;
+        let mut mixed = false;
+        let printing_at_start = mask != 0;
+        while budget > 0.0 && oi < ops.len() {
+            match ops[oi] {
+                Op::Move { to, v } => {
+                    if pos[0].is_nan() {
+                        pos = to;
+                        oi += 1;
+                        continue;
+                    }
+                    let d = ((to[0] - pos[0]).powi(2)
+                        + (to[1] - pos[1]).powi(2)
+                        + (to[2] - pos[2]).powi(2))
+                    .sqrt();
+                    let need = d / v.max(1e-6);
+                    let printing = mask != 0;
+                    if printing != printing_at_start {
+                        mixed = true;
+                    }
+                    if need <= budget {
+                        budget -= need;
+                        pos = to;
+                        if printing {
+                            s_print += d;
+                        }
+                        oi += 1;
+                    } else {
+                        let f = budget * v / d;
+                        for a in 0..3 {
+                            pos[a] += (to[a] - pos[a]) * f;
+                        }
+                        if printing {
+                            s_print += budget * v;
+                        }
+                        budget = 0.0;
+                    }
+                }
+                Op::Dwell(s) => {
+                    if dwell_left <= 0.0 {
+                        dwell_left = s;
+                    }
+                    let used = dwell_left.min(budget);
+                    dwell_left -= used;
+                    budget -= used;
+                    mixed = true;
+                    if dwell_left <= 1e-12 {
+                        dwell_left = 0.0;
+                        oi += 1;
+                    }
+                }
+                Op::Valve { port, on } => {
+                    // Takes effect next cycle; the head keeps moving.
+                    if on {
+                        mask |= 1 << port;
+                    } else {
+                        mask &= !(1 << port);
+                    }
+                    model.command(mask);
+                    mixed = true;
+                    oi += 1;
+                }
+            }
+        }
+        t += dt;
+        let ds = s_print - s_before;
+        let now = model.channel().landing();
+        if now != landing {
+            landed.push((0.5 * (s_before + s_print), now));
+            landing = now;
+        }
+        // Cross-section over whole cycles on a bead only: a cycle that starts or ends a
+        // bead mixes printing and standing and says nothing about the bead.
+        if ds > 0.0 && !mixed {
+            window.0 += dv;
+            window.1 += ds;
+            if window.1 >= WINDOW_MM {
+                let r = window.0 / (area * window.1);
+                range = (range.0.min(r), range.1.max(r));
+                window = (0.0, 0.0);
+            }
+        } else {
+            window = (0.0, 0.0);
+        }
+    }
+    // Each design boundary against the nearest landed change to the same material.
+    let mut by_material: Vec<Vec<f64>> = vec![Vec::new(); 256];
+    for &(s, m) in &landed {
+        by_material[m as usize].push(s);
+    }
+    for v in by_material.iter_mut() {
+        v.sort_by(f64::total_cmp);
+    }
+    let mut worst = 0.0f64;
+    let mut sum = 0.0;
+    for &(s, m) in design {
+        let v = &by_material[m as usize];
+        let k = v.partition_point(|&x| x < s);
+        let near = [k.checked_sub(1), Some(k)]
+            .into_iter()
+            .flatten()
+            .filter_map(|i| v.get(i))
+            .map(|x| (x - s).abs())
+            .fold(f64::INFINITY, f64::min);
+        worst = worst.max(near);
+        sum += near;
+    }
+    Figures {
+        boundaries: design.len(),
+        landed: landed.len(),
+        worst_boundary_mm: worst,
+        mean_boundary_mm: if design.is_empty() {
+            0.0
+        } else {
+            sum / design.len() as f64
+        },
+        section_range: range,
+        worst_section: (1.0 - range.0).max(range.1 - 1.0),
+        time_s: t,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsing_reads_moves_valves_and_dwells_and_survives_garbage() {
+        let ops = parse("G21\nG1 X1 Y2 F600 ; go\nM42 P1 S1\nG4 P250\nG1 X3\n");
+        assert_eq!(
+            ops,
+            vec![
+                Op::Move {
+                    to: [1.0, 2.0, 0.0],
+                    v: 10.0
+                },
+                Op::Valve { port: 1, on: true },
+                Op::Dwell(0.25),
+                Op::Move {
+                    to: [3.0, 2.0, 0.0],
+                    v: 10.0
+                },
+            ]
+        );
+        // Multibyte words, huge ports, missing values: skipped, never a panic.
+        let ops = parse("G1 Ä5 X\u{e9}\nM42 P200 S1\nM42 P\nG4 Pxyz\n\u{1F600}\n");
+        assert!(ops.iter().all(|o| !matches!(o, Op::Valve { .. })));
+    }
+}

@@ -1,0 +1,256 @@
+//! The slicer: turns designs (an image, or one STL per material) into the core's compact
+//! job, plus G-code for other controllers and preview pictures. Entry points for the
+//! `dollop slice` command and for `demo`/`simulate`: [`load_config`], [`slice_files`],
+//! [`job_file::write_job`]/[`job_file::read_job`], [`gcode::export`] and
+//! [`preview::render`]. Running jobs is the `dollop-sim` crate's business.
+
+pub mod design;
+pub mod error;
+pub mod gcode;
+pub mod gcode_sim;
+pub mod image;
+pub mod job_file;
+pub mod mesh;
+pub mod output;
+pub mod preview;
+pub mod toolpath;
+pub mod voxel;
+
+pub use error::SliceError;
+pub use toolpath::{PathOptions, PathStats};
+
+use dollop::config::Config;
+use dollop::job::JobHeader;
+use dollop::{Command, Machine};
+use std::path::{Path, PathBuf};
+
+/// Inlets the firmware build supports; configs with more are refused.
+pub const INLETS: usize = dollop::DEFAULT_INLETS;
+
+/// Everything `slice_files` needs besides the designs and the config.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SliceOptions {
+    /// How images become materials and how large they print.
+    pub image: image::ImageOptions,
+    /// Images: layers to stack (default 1). Meshes: print at most this many.
+    pub layers: Option<usize>,
+    /// Placement, priming bead and row joining.
+    pub path: PathOptions,
+    /// Material runs shorter than this are folded into their neighbours, mm.
+    pub min_run_mm: f64,
+    /// Show progress bars (only ever drawn on a terminal).
+    pub progress: bool,
+}
+
+impl Default for SliceOptions {
+    fn default() -> Self {
+        SliceOptions {
+            image: image::ImageOptions::default(),
+            layers: None,
+            path: PathOptions::default(),
+            min_run_mm: 0.1,
+            progress: false,
+        }
+    }
+}
+
+/// A sliced job: the header and commands of the `.dlp`, its encoded body, and counts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sliced {
+    /// The job header, filled in completely.
+    pub header: JobHeader,
+    /// The commands, ending with `End`.
+    pub commands: Vec<Command>,
+    /// The encoded body (what `header.body_len`/`body_crc` describe).
+    pub body: Vec<u8>,
+    /// What the design was ("logo.png", "a.stl + b.stl").
+    pub name: String,
+    /// Design size on the plate (X, Y) and layers.
+    pub size_mm: [f64; 2],
+    /// Toolpath counts.
+    pub stats: PathStats,
+}
+
+impl Sliced {
+    /// The whole `.dlp` file.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        job_file::job_bytes(&self.header, &self.body)
+    }
+    /// Body bytes per print segment.
+    pub fn body_bytes_per_segment(&self) -> f64 {
+        self.body.len() as f64 / self.header.print_segments.max(1) as f64
+    }
+    /// File bytes (header included) per print segment.
+    pub fn file_bytes_per_segment(&self) -> f64 {
+        self.to_bytes().len() as f64 / self.header.print_segments.max(1) as f64
+    }
+}
+
+/// Reads and validates a machine config (TOML, the core's `Config`).
+pub fn load_config(path: &Path) -> Result<Config, SliceError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SliceError::read(path, e))?;
+    let config: Config = toml::from_str(&text).map_err(|e| SliceError::ConfigParse {
+        path: path.to_path_buf(),
+        reason: e
+            .to_string()
+            .replace('\n', " ")
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" "),
+    })?;
+    validate(path, &config)?;
+    Ok(config)
+}
+
+/// Validates `config` (read from `path`) for this build.
+pub fn validate(path: &Path, config: &Config) -> Result<Machine<f64, INLETS>, SliceError> {
+    config
+        .validate::<f64, INLETS>()
+        .map_err(|problem| SliceError::ConfigInvalid {
+            path: path.to_path_buf(),
+            problem,
+        })
+}
+
+/// What kind of design a file is, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DesignKind {
+    /// PNG, JPEG or BMP.
+    Image,
+    /// STL, one body per file.
+    Stl,
+}
+
+/// The kind of `path` by its extension.
+pub fn design_kind(path: &Path) -> Result<DesignKind, SliceError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    if image::IMAGE_EXTENSIONS.contains(&ext.as_str()) {
+        Ok(DesignKind::Image)
+    } else if ext == "stl" {
+        Ok(DesignKind::Stl)
+    } else {
+        Err(SliceError::UnknownFormat {
+            path: path.to_path_buf(),
+        })
+    }
+}
+
+/// Slices design files for `config`: one image (materials by colour), or one STL per
+/// material in inlet order. Nothing is written; see [`job_file::write_job`].
+pub fn slice_files(
+    paths: &[PathBuf],
+    config: &Config,
+    opts: &SliceOptions,
+) -> Result<Sliced, SliceError> {
+    let machine = validate(Path::new("config"), config)?;
+    let design = load_design(paths, config, &machine, opts)?;
+    slice_design(&design, config, &machine, &opts.path)
+}
+
+/// Reads and slices the design files into a [`design::Design`] (before placement).
+pub fn load_design(
+    paths: &[PathBuf],
+    config: &Config,
+    machine: &Machine<f64, INLETS>,
+    opts: &SliceOptions,
+) -> Result<design::Design, SliceError> {
+    let Some(first) = paths.first() else {
+        return Err(SliceError::Option("no design file given".into()));
+    };
+    let inlets = machine.inlet_count();
+    let pitch = config.channel.line_pitch_mm as f64;
+    let kinds = paths
+        .iter()
+        .map(|p| design_kind(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    for p in paths {
+        if !p.exists() {
+            return Err(SliceError::NotFound { path: p.clone() });
+        }
+    }
+    match kinds[0] {
+        DesignKind::Image => {
+            if paths.len() > 1 {
+                return Err(SliceError::Option(format!(
+                    "{}: give one image (its colours are the materials); {} files given",
+                    first.display(),
+                    paths.len()
+                )));
+            }
+            let img = image::load(first)?;
+            image::slice_image(
+                &img,
+                &first.display().to_string(),
+                &opts.image,
+                pitch,
+                opts.layers.unwrap_or(1),
+                inlets,
+                opts.min_run_mm,
+            )
+        }
+        DesignKind::Stl => {
+            if let Some(p) = paths
+                .iter()
+                .zip(&kinds)
+                .find(|(_, k)| **k != DesignKind::Stl)
+            {
+                return Err(SliceError::Option(format!(
+                    "{}: cannot mix images with STL bodies",
+                    p.0.display()
+                )));
+            }
+            if paths.len() > inlets {
+                return Err(SliceError::TooManyMaterials {
+                    what: first.display().to_string(),
+                    found: paths.len(),
+                    inlets,
+                    hint: " (one STL per material, in inlet order)",
+                });
+            }
+            let meshes = paths
+                .iter()
+                .map(|p| mesh::read_stl(p))
+                .collect::<Result<Vec<_>, _>>()?;
+            voxel::slice_meshes(
+                &meshes,
+                &voxel::MeshOptions {
+                    pitch_mm: pitch,
+                    layer_mm: config.channel.layer_height_mm as f64,
+                    max_layers: opts.layers,
+                    min_run_mm: opts.min_run_mm,
+                    progress: opts.progress,
+                },
+            )
+        }
+    }
+}
+
+/// Places a design, plans its toolpath and encodes the job.
+pub fn slice_design(
+    design: &design::Design,
+    config: &Config,
+    machine: &Machine<f64, INLETS>,
+    opts: &PathOptions,
+) -> Result<Sliced, SliceError> {
+    let tp = toolpath::plan(design, config, machine, opts)?;
+    let body = job_file::encode_body(&tp.commands);
+    let header = job_file::header_for(
+        &tp.commands,
+        &body,
+        tp.start_um,
+        tp.initial_material,
+        config,
+    );
+    Ok(Sliced {
+        header,
+        commands: tp.commands,
+        body,
+        name: design.name.clone(),
+        size_mm: design.size_mm,
+        stats: tp.stats,
+    })
+}

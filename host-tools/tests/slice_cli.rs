@@ -1,0 +1,163 @@
+//! `dollop slice` and `dollop config` from the command line: outputs written and readable,
+//! `--help` on each, the example config complete and valid.
+
+use dollop::config::Config;
+use dollop_host::cmd::config::EXAMPLE;
+use dollop_host::slicer::job_file::read_job;
+use std::path::Path;
+use std::process::Command;
+
+fn dollop(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+fn manifest(p: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(p)
+        .to_str()
+        .unwrap()
+        .to_string()
+}
+
+#[test]
+fn slice_writes_job_gcode_and_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (code, out, err) = dollop(
+        d,
+        &[
+            "slice",
+            &manifest("designs/logo.png"),
+            "--config",
+            &manifest("../configs/seed-paper.toml"),
+            "--width-mm",
+            "30",
+            "--rotate",
+            "90",
+            "--mirror",
+            "x",
+            "--gcode",
+            "logo.gcode",
+            "--preview",
+            "logo-preview.png",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("wrote logo.dlp") && out.contains("bytes per print segment"),
+        "{out}"
+    );
+    let (h, cmds) = read_job(&d.join("logo.dlp")).unwrap();
+    assert_eq!(h.commands as usize, cmds.len());
+    assert!(h.bounds_max_um[0] - h.bounds_min_um[0] < 40_000);
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(g.contains("M42 P0 S1") && g.contains("M42 P1 S1") && g.contains("G1 X"));
+    let img = image::open(d.join("logo-preview.png")).unwrap();
+    assert!(img.width() > 100 && img.height() > 100);
+    // Nothing else (no temporary files) in the directory.
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 3);
+}
+
+#[test]
+fn stl_pair_slices_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, out, err) = dollop(
+        dir.path(),
+        &[
+            "slice",
+            &manifest("designs/cube-shell.stl"),
+            &manifest("designs/cube-ball.stl"),
+            "--config",
+            &manifest("../configs/seed-paper.toml"),
+            "--layers",
+            "5",
+            "--out",
+            "cube.dlp",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("5 layer(s)"), "{out}");
+}
+
+#[test]
+fn every_subcommand_of_mine_has_help() {
+    let dir = tempfile::tempdir().unwrap();
+    for sub in ["slice", "config", "bench"] {
+        let (code, out, _) = dollop(dir.path(), &[sub, "--help"]);
+        assert_eq!(code, 0, "{sub}");
+        assert!(out.contains("Usage: dollop"), "{sub}: {out}");
+    }
+}
+
+#[test]
+fn example_config_prints_parses_and_validates() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, out, _) = dollop(dir.path(), &["config", "--example"]);
+    assert_eq!(code, 0);
+    assert_eq!(out, EXAMPLE);
+    let c: Config = toml::from_str(&out).unwrap();
+    c.validate::<f64, 4>().unwrap();
+    std::fs::write(dir.path().join("m.toml"), &out).unwrap();
+    let (code, out, err) = dollop(dir.path(), &["config", "--check", "m.toml"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("advance distance L_adv  2.723 mm"), "{out}");
+}
+
+/// Every key the config types have appears in the example, explained (on a comment line
+/// or set on a line of its own).
+#[test]
+fn example_config_documents_every_key() {
+    let mut c: Config = toml::from_str(EXAMPLE).unwrap();
+    // Fill the optional parts so that serialising shows their keys too.
+    c.channel.bead_area_mm2 = Some(0.48);
+    c.inlets[0].syringe = Some(dollop::config::SyringeConfig {
+        steps_per_mm3: 1.0,
+        lag_k: 1.0,
+        lag_n: 1.0,
+    });
+    let v: toml::Value = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+    let mut keys = Vec::new();
+    fn walk(v: &toml::Value, keys: &mut Vec<String>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    keys.push(k.clone());
+                    walk(x, keys);
+                }
+            }
+            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, keys)),
+            _ => {}
+        }
+    }
+    walk(&v, &mut keys);
+    for variant in [
+        "power_law",
+        "herschel_bulkley",
+        "consistency_pa_sn",
+        "flow_index",
+        "yield_stress_pa",
+    ] {
+        keys.push(variant.into());
+    }
+    assert!(keys.len() > 30, "{keys:?}");
+    for k in keys {
+        assert!(EXAMPLE.contains(&k), "example config does not mention {k}");
+    }
+}
+
+#[test]
+fn config_without_a_flag_says_what_to_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, err) = dollop(dir.path(), &["config"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("--example"), "{err}");
+}
