@@ -826,7 +826,8 @@ impl Config {
                     let t_end = Syringe::settle_time(ka, na).max(Syringe::settle_time(kb, nb));
                     for step in 0..=4000 {
                         let t = t_end * step as f64 / 4000.0;
-                        let total = 1.0 - Syringe::response(ka, na, t) + Syringe::response(kb, nb, t);
+                        let total =
+                            1.0 - Syringe::response(ka, na, t) + Syringe::response(kb, nb, t);
                         let v = rate * total / s;
                         if v > v_flow_max {
                             v_flow_max = v;

@@ -177,7 +177,11 @@ fn stepper_syringes_boundary_inside_a_bead_end_tail_is_the_known_limit() {
     summary("chessboard 2 mm/syringes", &r);
     assert_eq!(r.state, RunState::Done);
     assert!(r.metrics.worst_boundary() <= 0.05);
-    assert!(r.metrics.mismatches.len() <= 1, "{:?}", r.metrics.mismatches);
+    assert!(
+        r.metrics.mismatches.len() <= 1,
+        "{:?}",
+        r.metrics.mismatches
+    );
     for m in &r.metrics.mismatches {
         let len: f64 = m
             .split("shortest landed runs (length, s, material) [(")

@@ -1,4 +1,7 @@
 //! Library side of the `dollop` command, so tests and benchmarks reach the same code the
 //! command line runs.
 
+pub mod calibrate;
 pub mod cmd;
+pub mod link;
+pub mod slicer;

@@ -16,8 +16,7 @@ fn dollop() -> Command {
 /// A small two-material job written as a .dlp for the seed printhead with real valves.
 fn write_job(dir: &Path) -> (PathBuf, PathBuf) {
     let cfg_path = repo().join("configs/seed-paper-valves.toml");
-    let cfg: dollop::Config =
-        toml::from_str(&std::fs::read_to_string(&cfg_path).unwrap()).unwrap();
+    let cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&cfg_path).unwrap()).unwrap();
     let fill = dollop_sim::designs::Fill {
         origin_mm: [20.0, 20.0],
         width_mm: 6.0,
@@ -30,7 +29,13 @@ fn write_job(dir: &Path) -> (PathBuf, PathBuf) {
     };
     let job = dollop_sim::designs::boustrophedon(&fill, dollop_sim::designs::stripes(1.5));
     let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(&job.commands, &body, job.start_um, job.initial_material, &cfg);
+    let header = job_file::header_for(
+        &job.commands,
+        &body,
+        job.start_um,
+        job.initial_material,
+        &cfg,
+    );
     let path = dir.join("stripes.dlp");
     job_file::write_job(&path, &header, &body).unwrap();
     (path, cfg_path)
@@ -55,7 +60,11 @@ fn trace_heatmap_and_report() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for key in [
         "print time",
         "material switches",
@@ -94,7 +103,9 @@ fn trace_heatmap_and_report() {
     assert!(img.width() > 100 && img.height() > 20);
     // Both materials' colours are on the plate.
     let has = |c: [u8; 3]| img.pixels().any(|p| p.0 == c);
-    assert!(has(dollop_host::cmd::simulate::PALETTE[0]) && has(dollop_host::cmd::simulate::PALETTE[1]));
+    assert!(
+        has(dollop_host::cmd::simulate::PALETTE[0]) && has(dollop_host::cmd::simulate::PALETTE[1])
+    );
 }
 
 #[test]
@@ -112,7 +123,14 @@ fn bad_inputs_are_refused_in_one_line_and_leave_nothing() {
     };
     let missing = dir.path().join("nope.dlp");
     check(
-        &["simulate".as_ref(), missing.as_os_str(), "--config".as_ref(), cfg.as_os_str(), "--trace".as_ref(), trace.as_os_str()],
+        &[
+            "simulate".as_ref(),
+            missing.as_os_str(),
+            "--config".as_ref(),
+            cfg.as_os_str(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+        ],
         "nope.dlp",
     );
     let corrupt = dir.path().join("corrupt.dlp");
@@ -121,14 +139,30 @@ fn bad_inputs_are_refused_in_one_line_and_leave_nothing() {
     bytes[n - 3] ^= 0x55;
     std::fs::write(&corrupt, bytes).unwrap();
     check(
-        &["simulate".as_ref(), corrupt.as_os_str(), "--config".as_ref(), cfg.as_os_str(), "--trace".as_ref(), trace.as_os_str()],
+        &[
+            "simulate".as_ref(),
+            corrupt.as_os_str(),
+            "--config".as_ref(),
+            cfg.as_os_str(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+        ],
         "corrupt.dlp",
     );
     let bad_cfg = dir.path().join("bad.toml");
-    let text = std::fs::read_to_string(&cfg).unwrap().replace("nozzle_diameter_mm = 0.8", "nozzle_diameter_mm = 0");
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("nozzle_diameter_mm = 0.8", "nozzle_diameter_mm = 0");
     std::fs::write(&bad_cfg, text).unwrap();
     check(
-        &["simulate".as_ref(), job.as_os_str(), "--config".as_ref(), bad_cfg.as_os_str(), "--trace".as_ref(), trace.as_os_str()],
+        &[
+            "simulate".as_ref(),
+            job.as_os_str(),
+            "--config".as_ref(),
+            bad_cfg.as_os_str(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+        ],
         "nozzle_diameter_mm",
     );
 }

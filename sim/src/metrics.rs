@@ -305,7 +305,10 @@ impl Meter {
                 .iter()
                 .enumerate()
                 .map(|(k, r)| {
-                    let end = runs.get(k + 1).map(|n| n.0).unwrap_or(trace.s + trace.extra);
+                    let end = runs
+                        .get(k + 1)
+                        .map(|n| n.0)
+                        .unwrap_or(trace.s + trace.extra);
                     (end - r.0, r.0, r.1)
                 })
                 .collect();

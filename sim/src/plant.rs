@@ -406,7 +406,11 @@ fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
         .zip(content)
         .all(|(l, &v)| v <= 0.0 || (l.n == 1.0 && l.b == 0.0))
     {
-        let r: f64 = laws.iter().zip(content).map(|(l, &v)| v.max(0.0) * l.a).sum();
+        let r: f64 = laws
+            .iter()
+            .zip(content)
+            .map(|(l, &v)| v.max(0.0) * l.a)
+            .sum();
         return p / r;
     }
     let mut hi = 1.0;

@@ -234,7 +234,7 @@ pub fn run<R: Real>(
             }
             valves_prev = out.valves;
         }
-        if cycle % RATE_WINDOW == 0 {
+        if cycle.is_multiple_of(RATE_WINDOW) {
             for a in 0..3 {
                 let n = out.pulses[a] - rate_base[a];
                 peak_rate[a] = peak_rate[a].max(n as f64 / (RATE_WINDOW as f64 * dt));

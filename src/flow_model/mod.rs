@@ -173,7 +173,12 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         let dt = self.dt;
         let mut total = R::ZERO;
         let mut best: Option<(usize, R)> = None;
-        for (i, (pl, resp)) in self.plungers.iter_mut().zip(self.responses.iter()).enumerate() {
+        for (i, (pl, resp)) in self
+            .plungers
+            .iter_mut()
+            .zip(self.responses.iter())
+            .enumerate()
+        {
             let q = pl.flow_mid(k, dt, resp);
             total += q;
             if q > R::ZERO && best.is_none_or(|(_, b)| q > b) {
@@ -401,9 +406,10 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// True while some valve is open or a line still holds pressure above `p_min`.
     pub fn active(&self, p_min: R) -> bool {
         self.plungers.iter().any(|p| p.running || p.len > 0)
-            || self.lines
-            .iter()
-            .any(|l| l.open || l.commanded || !l.pending.is_empty() || l.p > p_min)
+            || self
+                .lines
+                .iter()
+                .any(|l| l.open || l.commanded || !l.pending.is_empty() || l.p > p_min)
     }
 }
 

@@ -373,7 +373,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             flows(&self.plungers[..n], k0 + half + half, &mut q1);
             let span = dt * half * R::TWO;
             let mut dv = R::ZERO;
-            let (mut lead0, mut other0, mut lead1, mut other1) = (R::ZERO, R::ZERO, R::ZERO, R::ZERO);
+            let (mut lead0, mut other0, mut lead1, mut other1) =
+                (R::ZERO, R::ZERO, R::ZERO, R::ZERO);
             let mut settled = true;
             for i in 0..n {
                 dv += (q0[i] + R::of(4.0) * qm[i] + q1[i]) * span * R::of(1.0 / 6.0);

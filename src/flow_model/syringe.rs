@@ -67,7 +67,9 @@ impl<R: Real> Response<R> {
         }
         let x = t * self.inv_step;
         // floor(x) for x > 0: round(x - 1/2), ties away from zero.
-        let i = (x - R::HALF).round_i64().clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
+        let i = (x - R::HALF)
+            .round_i64()
+            .clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
         let frac = x - R::from_u32(i as u32);
         self.f[i] + (self.f[i + 1] - self.f[i]) * frac
     }
@@ -80,7 +82,9 @@ impl<R: Real> Response<R> {
         }
         let t = t.max(R::ZERO);
         let x = t * self.inv_step;
-        let i = (x - R::HALF).round_i64().clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
+        let i = (x - R::HALF)
+            .round_i64()
+            .clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
         let frac = x - R::from_u32(i as u32);
         self.h[i] + (self.h[i + 1] - self.h[i]) * frac
     }
@@ -226,6 +230,9 @@ mod tests {
         }
         p.command(false, 2000, 5.0);
         let predicted = p.remaining(2000.0, dt, &r);
-        assert!((before + predicted - 1.0).abs() < 2e-3, "{before} + {predicted}");
+        assert!(
+            (before + predicted - 1.0).abs() < 2e-3,
+            "{before} + {predicted}"
+        );
     }
 }

@@ -1,10 +1,362 @@
-//! `dollop bench` (not yet implemented).
+//! `dollop bench`: prints performance and size figures, one function per figure (add a
+//! new one to `BENCHES`). Each prints its numbers with the machine's core count; none is
+//! a pass/fail test. Run it from a release build for figures worth quoting.
+
+use crate::slicer::design::Design;
+use crate::slicer::gcode::{self, Style};
+use crate::slicer::image::{self, ImageOptions};
+use crate::slicer::mesh::{self, shapes};
+use crate::slicer::{self, gcode_sim, voxel, SliceOptions};
+use anyhow::Context as _;
+use dollop::config::Config;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Arguments of `dollop bench`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Run only the figures whose name contains this (e.g. `image`, `mesh`, `job-size`).
+    #[arg(long, value_name = "NAME")]
+    pub only: Option<String>,
+    /// Smaller inputs, for a quick look (figures are then not comparable with the goals).
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// What every figure gets.
+#[derive(Clone, Debug)]
+pub struct Ctx {
+    /// Cores this machine offers (`available_parallelism`).
+    pub cores: usize,
+    /// Smaller inputs.
+    pub quick: bool,
+}
+
+/// One figure: prints its lines, or fails with a reason.
+pub type Bench = fn(&Ctx) -> anyhow::Result<()>;
+
+/// Every figure, in the order printed.
+pub const BENCHES: &[(&str, Bench)] = &[
+    ("image-slicing", image_slicing),
+    ("mesh-slicing", mesh_slicing),
+    ("job-size", job_size),
+    ("gcode-quality", gcode_quality),
+    ("simulation", simulation),
+    ("link", link),
+];
 
 /// Runs `dollop bench`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`dollop bench` is not implemented yet")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let ctx = Ctx {
+        cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        quick: a.quick,
+    };
+    if cfg!(debug_assertions) {
+        println!("(debug build: figures are not representative; use --release)");
+    }
+    let mut ran = 0;
+    for (name, f) in BENCHES {
+        if a.only.as_deref().is_some_and(|o| !name.contains(o)) {
+            continue;
+        }
+        println!("== {name} ({} core(s) available)", ctx.cores);
+        f(&ctx).with_context(|| format!("bench {name}"))?;
+        ran += 1;
+    }
+    if ran == 0 {
+        anyhow::bail!("no bench matches --only {:?}", a.only.unwrap_or_default());
+    }
+    Ok(())
+}
+
+/// The example config (the seed paper's printhead), as every figure's base machine.
+pub fn example_config() -> anyhow::Result<Config> {
+    Ok(toml::from_str(super::config::EXAMPLE)?)
+}
+
+/// Where the bundled designs live (the source tree's `host-tools/designs`).
+pub fn designs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("designs")
+}
+
+fn secs(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// A two-material test picture: a chessboard of 16 squares across inside a disc, the
+/// rest transparent.
+pub fn test_image(size: u32) -> ::image::DynamicImage {
+    let sq = (size / 16).max(1);
+    let r = size as f64 * 0.48;
+    let c = size as f64 / 2.0;
+    ::image::DynamicImage::ImageRgba8(::image::RgbaImage::from_fn(size, size, |x, y| {
+        let (dx, dy) = (x as f64 + 0.5 - c, y as f64 + 0.5 - c);
+        if dx * dx + dy * dy > r * r {
+            ::image::Rgba([255, 255, 255, 0])
+        } else if ((x / sq) + (y / sq)).is_multiple_of(2) {
+            ::image::Rgba([70, 40, 20, 255])
+        } else {
+            ::image::Rgba([240, 225, 190, 255])
+        }
+    }))
+}
+
+/// Slicing a 4000 x 4000 two-material image at 0.2 mm pitch (goal: under 1 s on one core;
+/// the slicer is single-threaded).
+pub fn image_slicing(ctx: &Ctx) -> anyhow::Result<()> {
+    let px = if ctx.quick { 1000 } else { 4000 };
+    let mut config = example_config()?;
+    config.channel.line_pitch_mm = 0.2;
+    config.channel.layer_height_mm = 0.2;
+    config.channel.nozzle_diameter_mm = 0.25;
+    config.channel.nozzle_height_mm = 0.25;
+    config.channel.bead_area_mm2 = None;
+    config.motion.travel_max_mm = [1000.0, 1000.0, 100.0];
+    let machine = slicer::validate(Path::new("bench config"), &config)?;
+    let img = test_image(px);
+    let inlets = machine.inlet_count();
+    for (label, width) in [
+        ("1 px = 1 pitch", None),
+        ("resampled to 200 mm", Some(200.0)),
+    ] {
+        let opts = ImageOptions {
+            width_mm: width,
+            ..Default::default()
+        };
+        let t = Instant::now();
+        let design = image::slice_image(&img, "bench", &opts, 0.2, 1, inlets, 0.1)?;
+        let t_design = secs(t);
+        let sliced = slicer::slice_design(&design, &config, &machine, &Default::default())?;
+        let total = secs(t);
+        println!(
+            "image {px}x{px} px, {label}: {:.0} x {:.0} mm, {} rows, {} runs -> {} print segments; classify+resample {:.3} s, total {:.3} s (goal < 1 s on one core)",
+            design.size_mm[0],
+            design.size_mm[1],
+            design.layers[0].rows(),
+            design.layers[0].runs().len(),
+            sliced.header.print_segments,
+            t_design,
+            total,
+        );
+    }
+    // Decoding is the image crate's; shown apart.
+    let dir = tempfile::tempdir()?;
+    let path = dir.path().join("bench.png");
+    img.save(&path)?;
+    let t = Instant::now();
+    let _ = image::load(&path)?;
+    println!(
+        "decoding that image from PNG ({} bytes): {:.3} s",
+        std::fs::metadata(&path)?.len(),
+        secs(t)
+    );
+    Ok(())
+}
+
+/// Voxelizing and slicing a 1 000 000-triangle two-material mesh at 0.8 mm pitch and
+/// 0.6 mm layers (goal: under 3 s), generated procedurally: a 100 mm cube with a
+/// spherical cavity and the ball that fills it.
+pub fn mesh_slicing(ctx: &Ctx) -> anyhow::Result<()> {
+    let tris = if ctx.quick { 100_000 } else { 1_000_000 };
+    let config = example_config()?;
+    let machine = slicer::validate(Path::new("example config"), &config)?;
+    let dir = tempfile::tempdir()?;
+    let paths = [dir.path().join("shell.stl"), dir.path().join("ball.stl")];
+    let meshes = shapes::box_with_sphere(
+        [&paths[0], &paths[1]],
+        [50.0, 50.0, 0.0],
+        [150.0, 150.0, 80.0],
+        38.0,
+        tris,
+    );
+    let n: usize = meshes.iter().map(|m| m.triangles.len()).sum();
+    let t = Instant::now();
+    let design = voxel::slice_meshes(
+        &meshes,
+        &voxel::MeshOptions {
+            pitch_mm: 0.8,
+            layer_mm: 0.6,
+            max_layers: None,
+            min_run_mm: 0.1,
+            progress: false,
+        },
+    )?;
+    let t_vox = secs(t);
+    let sliced = slicer::slice_design(&design, &config, &machine, &Default::default())?;
+    let total = secs(t);
+    println!(
+        "mesh of {n} triangles (2 bodies), {} layers x {} rows: checked+voxelized {:.3} s, with toolpath and encoding {:.3} s (goal < 3 s); {} print segments, single-threaded",
+        design.layers.len(),
+        design.layers.first().map_or(0, |l| l.rows()),
+        t_vox,
+        total,
+        sliced.header.print_segments
+    );
+    for (m, p) in meshes.iter().zip(&paths) {
+        mesh::write_stl(p, m)?;
+    }
+    let t = Instant::now();
+    for p in &paths {
+        let _ = mesh::read_stl(p)?;
+    }
+    println!(
+        "reading the two binary STL files ({} MB, stl_io and vertex welding): {:.3} s",
+        (std::fs::metadata(&paths[0])?.len() + std::fs::metadata(&paths[1])?.len()) / 1_000_000,
+        secs(t)
+    );
+    Ok(())
+}
+
+/// The bundled designs, sliced for the example machine: (label, design files, options).
+pub fn bundled() -> Vec<(&'static str, Vec<PathBuf>, SliceOptions)> {
+    let d = designs_dir();
+    let logo = SliceOptions {
+        image: ImageOptions {
+            width_mm: Some(40.0),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    vec![
+        (
+            "chessboard.png",
+            vec![d.join("chessboard.png")],
+            SliceOptions::default(),
+        ),
+        ("logo.png (40 mm)", vec![d.join("logo.png")], logo),
+        (
+            "cube-shell.stl + cube-ball.stl",
+            vec![d.join("cube-shell.stl"), d.join("cube-ball.stl")],
+            SliceOptions::default(),
+        ),
+    ]
+}
+
+/// Job bytes per print segment against the exported G-code's, on the bundled designs
+/// (goal: at most 8 bytes per segment in the job).
+pub fn job_size(_ctx: &Ctx) -> anyhow::Result<()> {
+    let config = example_config()?;
+    let machine = slicer::validate(Path::new("example config"), &config)?;
+    let names: Vec<String> = config
+        .inlets
+        .iter()
+        .map(|i| i.material.to_string())
+        .collect();
+    for (label, files, opts) in bundled() {
+        let s = slicer::slice_files(&files, &config, &opts)?;
+        let segs = s.header.print_segments.max(1) as f64;
+        let g = |style| {
+            gcode::export(
+                &s.commands,
+                s.header.start_um,
+                s.header.initial_material,
+                &machine,
+                &names,
+                style,
+            )
+            .map(|x| x.1)
+        };
+        let fine = g(Style::default())?;
+        let coarse = g(Style::Coarse { segments: 4 })?;
+        println!(
+            "{label}: {} print segments; job {} bytes = {:.2} B/segment (body {:.2}); G-code fine {:.1} B/segment ({:.0}x), coarse {:.1} B/segment",
+            s.header.print_segments,
+            s.to_bytes().len(),
+            s.file_bytes_per_segment(),
+            s.body_bytes_per_segment(),
+            fine.bytes as f64 / segs,
+            fine.bytes as f64 / s.to_bytes().len() as f64,
+            coarse.bytes as f64 / segs,
+        );
+    }
+    Ok(())
+}
+
+/// Our G-code against the seed paper's coarse scheme, run on the core's flow model:
+/// worst boundary error and cross-section deviation.
+pub fn gcode_quality(ctx: &Ctx) -> anyhow::Result<()> {
+    let mut ideal = example_config()?;
+    for i in ideal.inlets.iter_mut() {
+        i.valve_open_delay_ms = 0.0;
+        i.valve_close_delay_ms = 0.0;
+        i.pressure_rise_ms = 0.0;
+        i.pressure_decay_ms = 0.0;
+    }
+    let real = example_config()?;
+    let square = if ctx.quick { 4.0 } else { 2.0 };
+    for (label, config) in [
+        ("ideal valves", ideal),
+        ("valves with 10 ms dead time", real),
+    ] {
+        let machine = slicer::validate(Path::new("example config"), &config)?;
+        let design = chessboard_design(20.0, square, 0.8);
+        let s = slicer::slice_design(&design, &config, &machine, &Default::default())?;
+        let bounds =
+            gcode::design_boundaries(&s.commands, s.header.start_um, s.header.initial_material);
+        for (name, style) in [
+            ("fine", Style::default()),
+            ("coarse", Style::Coarse { segments: 4 }),
+        ] {
+            let (text, _) = gcode::export(
+                &s.commands,
+                s.header.start_um,
+                s.header.initial_material,
+                &machine,
+                &[],
+                style,
+            )?;
+            let f = gcode_sim::simulate(&text, &machine, s.header.initial_material, &bounds, 600.0);
+            println!(
+                "{label}, {square} mm chessboard, {name:>6}: worst boundary error {:.3} mm (mean {:.3}) over {} boundaries, cross-section {:.3}..{:.3} of S",
+                f.worst_boundary_mm, f.mean_boundary_mm, f.boundaries, f.section_range.0, f.section_range.1
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A chessboard design of `width` mm with `square` mm squares at `pitch`, built directly
+/// (boundaries exactly on the squares).
+pub fn chessboard_design(width: f64, square: f64, pitch: f64) -> Design {
+    use crate::slicer::design::{Layer, Run};
+    let rows = (width / pitch).round() as usize;
+    let n = (width / square).round() as usize;
+    let mut layer = Layer::new();
+    for r in 0..rows {
+        let y = (r as f64 + 0.5) * pitch;
+        let mut runs: Vec<Run> = (0..n)
+            .map(|c| Run {
+                x0: c as f64 * square,
+                x1: (c + 1) as f64 * square,
+                material: (((y / square).floor() as usize + c) % 2) as u8,
+            })
+            .collect();
+        layer.push_row(&mut runs, 0.0);
+    }
+    Design {
+        name: format!("{square} mm chessboard"),
+        size_mm: [n as f64 * square, rows as f64 * pitch],
+        pitch_mm: pitch,
+        layers: vec![layer],
+    }
+}
+
+/// Simulation speed: the executor the firmware runs, in virtual time on this machine,
+/// alone (what `dollop simulate` does) and with the reference plant (what tests do).
+pub fn simulation(_ctx: &Ctx) -> anyhow::Result<()> {
+    let config = example_config()?;
+    let text = dollop_sim::bench::report(&config).map_err(|e| anyhow::anyhow!("{e}"))?;
+    print!("{text}");
+    Ok(())
+}
+
+/// Link code throughput on the host: frame codec, and a whole 100 000-segment upload
+/// through the protocol client and the simulated board.
+pub fn link(_ctx: &Ctx) -> anyhow::Result<()> {
+    let text = crate::link::bench_link();
+    print!("{text}");
+    if text.contains("failed") || text.contains("does not parse") {
+        anyhow::bail!("the link benchmark did not complete");
+    }
+    Ok(())
 }

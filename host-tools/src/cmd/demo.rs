@@ -1,10 +1,159 @@
-//! `dollop demo` (not yet implemented).
+//! `dollop demo`: the main job on built-in example data. Slices a bundled design for a
+//! bundled machine (the seed paper's printhead with real valves), writes the job, G-code
+//! and pictures, simulates the print through the firmware's executor and the reference
+//! plant, and prints the report. Everything it needs is compiled into the binary.
+
+use super::simulate::{self, Heatmap};
+use crate::slicer::{self, gcode, image::ImageOptions, job_file, preview, SliceOptions};
+use anyhow::Context;
+use dollop_sim::Job;
+use std::path::{Path, PathBuf};
+
+/// The bundled designs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Design {
+    /// A two-material logo picture, printed 40 mm wide.
+    Logo,
+    /// A two-material chessboard picture, one pixel per bead.
+    Chessboard,
+    /// A cube shell around a ball: two STL bodies, one per material.
+    Cube,
+}
 
 /// Arguments of `dollop demo`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Which bundled design.
+    #[arg(long, value_enum, default_value_t = Design::Logo)]
+    pub design: Design,
+    /// Directory for what it writes (config, design, job, G-code, pictures).
+    #[arg(long, value_name = "DIR", default_value = "dollop-demo")]
+    pub out_dir: PathBuf,
+}
+
+const MACHINE: &str = include_str!("../../../configs/seed-paper-valves.toml");
+const LOGO: &[u8] = include_bytes!("../../designs/logo.png");
+const CHESSBOARD: &[u8] = include_bytes!("../../designs/chessboard.png");
+const CUBE_SHELL: &[u8] = include_bytes!("../../designs/cube-shell.stl");
+const CUBE_BALL: &[u8] = include_bytes!("../../designs/cube-ball.stl");
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> anyhow::Result<PathBuf> {
+    let path = dir.join(name);
+    slicer::output::write_bytes(&path, bytes)?;
+    Ok(path)
+}
 
 /// Runs `dollop demo`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`dollop demo` is not implemented yet")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let dir = &a.out_dir;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let machine_path = write(dir, "machine.toml", MACHINE.as_bytes())?;
+    let config = slicer::load_config(&machine_path)?;
+    let (name, files, opts) = match a.design {
+        Design::Logo => (
+            "logo",
+            vec![write(dir, "logo.png", LOGO)?],
+            SliceOptions {
+                image: ImageOptions {
+                    width_mm: Some(40.0),
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        ),
+        Design::Chessboard => (
+            "chessboard",
+            vec![write(dir, "chessboard.png", CHESSBOARD)?],
+            SliceOptions::default(),
+        ),
+        Design::Cube => (
+            "cube",
+            vec![
+                write(dir, "cube-shell.stl", CUBE_SHELL)?,
+                write(dir, "cube-ball.stl", CUBE_BALL)?,
+            ],
+            SliceOptions::default(),
+        ),
+    };
+    let opts = SliceOptions {
+        progress: true,
+        ..opts
+    };
+    let sliced = slicer::slice_files(&files, &config, &opts)?;
+    let job_path = dir.join(format!("{name}.dlp"));
+    job_file::write_job(&job_path, &sliced.header, &sliced.body)?;
+    let machine = slicer::validate(&machine_path, &config)?;
+    let names: Vec<String> = config
+        .inlets
+        .iter()
+        .map(|i| i.material.to_string())
+        .collect();
+    let (gcode_text, _) = gcode::export(
+        &sliced.commands,
+        sliced.header.start_um,
+        sliced.header.initial_material,
+        &machine,
+        &names,
+        gcode::Style::Fine { max_sub_mm: 0.25 },
+    )?;
+    let gcode_path = write(dir, &format!("{name}.gcode"), gcode_text.as_bytes())?;
+    let preview_path = dir.join(format!("{name}-toolpath.png"));
+    preview::render(
+        &preview_path,
+        &sliced.commands,
+        sliced.header.start_um,
+        &preview::PreviewOptions {
+            bead_mm: config.channel.line_pitch_mm as f64,
+            ..Default::default()
+        },
+    )?;
+    println!(
+        "sliced {} for {}: {} print segments, {:.1} x {:.1} mm, job {} bytes ({:.1} B/segment; G-code {:.0} B/segment)",
+        files
+            .iter()
+            .filter_map(|p| p.file_name())
+            .map(|n| n.to_string_lossy())
+            .collect::<Vec<_>>()
+            .join(" + "),
+        machine_path.display(),
+        sliced.header.print_segments,
+        sliced.size_mm[0],
+        sliced.size_mm[1],
+        sliced.to_bytes().len(),
+        sliced.file_bytes_per_segment(),
+        gcode_text.len() as f64 / sliced.header.print_segments.max(1) as f64,
+    );
+    let job = Job {
+        start_um: sliced.header.start_um,
+        initial_material: sliced.header.initial_material,
+        commands: sliced.commands.clone(),
+    };
+    let mut heat = Heatmap::for_job(&job, &config);
+    let t = std::time::Instant::now();
+    let result = simulate::simulate_job(
+        &config,
+        &job,
+        true,
+        simulate::Outputs {
+            trace: None,
+            heatmap: Some(&mut heat),
+            progress: true,
+        },
+    )?;
+    let wall = t.elapsed();
+    heat.mark_boundaries(&result.metrics.boundaries);
+    let plate_path = dir.join(format!("{name}-plate.png"));
+    heat.save(&plate_path)?;
+    print!("{}", simulate::report_text(&result, &config, true, wall));
+    println!(
+        "wrote {}, {}, {}, {}",
+        job_path.display(),
+        gcode_path.display(),
+        preview_path.display(),
+        plate_path.display()
+    );
+    if let Some(f) = result.fault {
+        anyhow::bail!("the demo job ended in a fault: {f}");
+    }
+    Ok(())
 }

@@ -86,7 +86,7 @@ pub fn simulate_job(
     let result = dollop_sim::run::<f32>(config, job, &opts, |c| {
         let r = c.report;
         if let Some(w) = trace.as_deref_mut() {
-            if io_error.is_none() && (cycle % every == 0 || r.valves != last_mask) {
+            if io_error.is_none() && (cycle.is_multiple_of(every) || r.valves != last_mask) {
                 if let Err(e) = writeln!(
                     w,
                     "{:.4},{:.4},{:.4},{:.4},{}",
@@ -102,7 +102,7 @@ pub fn simulate_job(
                 h.paint(r.position[0] as f64, r.position[1] as f64, c.landing);
             }
         }
-        if cycle % 1000 == 0 {
+        if cycle.is_multiple_of(1000) {
             bar.set_position(r.command_index as u64);
         }
         cycle += 1;
@@ -116,7 +116,12 @@ pub fn simulate_job(
 }
 
 /// The report, as printed.
-pub fn report_text(r: &RunResult, config: &Config, plant: bool, wall: std::time::Duration) -> String {
+pub fn report_text(
+    r: &RunResult,
+    config: &Config,
+    plant: bool,
+    wall: std::time::Duration,
+) -> String {
     let m = &r.metrics;
     let limit = config.motion.max_step_rate_hz;
     let mut s = String::new();
@@ -184,10 +189,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         initial_material: header.initial_material,
         commands,
     };
-    let mut heat = match &a.heatmap {
-        Some(_) => Some(Heatmap::for_job(&job, &config)),
-        None => None,
-    };
+    let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
     let t = std::time::Instant::now();
     let result = match &a.trace {
@@ -246,17 +248,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Material colours on the plate, by inlet.
-pub const PALETTE: [[u8; 3]; 8] = [
-    [232, 196, 74],
-    [110, 62, 34],
-    [200, 40, 60],
-    [60, 140, 70],
-    [70, 110, 200],
-    [150, 80, 170],
-    [40, 170, 170],
-    [120, 120, 120],
-];
+/// Material colours on the plate, by inlet: the same as the toolpath preview's.
+pub const PALETTE: [[u8; 3]; 8] = slicer::preview::MATERIAL_COLOURS;
 
 /// The plate as a picture: deposited material per cell, boundary errors as coloured dots.
 pub struct Heatmap {
@@ -325,7 +318,11 @@ impl Heatmap {
                     continue;
                 }
                 let (x, y) = (cx + dx, cy + dy);
-                if x >= 0 && y >= 0 && (x as u32) < self.img.width() && (y as u32) < self.img.height() {
+                if x >= 0
+                    && y >= 0
+                    && (x as u32) < self.img.width()
+                    && (y as u32) < self.img.height()
+                {
                     self.img.put_pixel(x as u32, y as u32, image::Rgb(colour));
                 }
             }
