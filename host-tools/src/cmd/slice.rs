@@ -12,10 +12,12 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Examples:\n  \
 dollop slice logo.png --config machine.toml --width-mm 40 --preview logo-preview.png\n  \
-dollop slice base.stl inlay.stl --config machine.toml --out coaster.dlp --gcode coaster.gcode")]
+dollop slice base.stl inlay.stl --config machine.toml --out coaster.dlp --gcode coaster.gcode\n  \
+dollop slice coaster.3mf --config machine.toml --preview coaster.png")]
 pub struct Args {
-    /// Design: one image (PNG, JPEG, BMP; colours are materials) or one STL per material
-    /// in inlet order (ASCII or binary).
+    /// Design: one image (PNG, JPEG, BMP; colours are materials), one STL per material
+    /// in inlet order (ASCII or binary), or one 3MF whose objects carry the materials
+    /// (base material i prints from inlet i; without materials, object i in build order).
     #[arg(required = true, value_name = "DESIGN")]
     pub designs: Vec<PathBuf>,
     /// Machine config (TOML; `dollop config --example` prints one).

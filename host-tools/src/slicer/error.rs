@@ -30,7 +30,7 @@ pub enum SliceError {
         source: std::io::Error,
     },
     /// The extension is neither an image nor a mesh format this build reads.
-    #[error("{}: unknown design format (expected .png, .jpg, .jpeg, .bmp or .stl)", .path.display())]
+    #[error("{}: unknown design format (expected .png, .jpg, .jpeg, .bmp, .stl or .3mf)", .path.display())]
     UnknownFormat {
         /// The file.
         path: PathBuf,
@@ -49,6 +49,14 @@ pub enum SliceError {
         /// The file.
         path: PathBuf,
         /// What the parser said.
+        reason: String,
+    },
+    /// The 3MF could not be read, or describes no printable body.
+    #[error("{}: unusable 3MF: {reason}", .path.display())]
+    ThreeMf {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
         reason: String,
     },
     /// The STL holds no triangle.

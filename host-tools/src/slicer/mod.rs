@@ -13,6 +13,7 @@ pub mod job_file;
 pub mod mesh;
 pub mod output;
 pub mod preview;
+pub mod threemf;
 pub mod toolpath;
 pub mod voxel;
 
@@ -119,6 +120,8 @@ pub enum DesignKind {
     Image,
     /// STL, one body per file.
     Stl,
+    /// 3MF: every body in one file, materials per object.
+    ThreeMf,
 }
 
 /// The kind of `path` by its extension.
@@ -132,6 +135,8 @@ pub fn design_kind(path: &Path) -> Result<DesignKind, SliceError> {
         Ok(DesignKind::Image)
     } else if ext == "stl" {
         Ok(DesignKind::Stl)
+    } else if ext == "3mf" {
+        Ok(DesignKind::ThreeMf)
     } else {
         Err(SliceError::UnknownFormat {
             path: path.to_path_buf(),
@@ -192,6 +197,25 @@ pub fn load_design(
                 opts.min_run_mm,
             )
         }
+        DesignKind::ThreeMf => {
+            if paths.len() > 1 {
+                return Err(SliceError::Option(format!(
+                    "{}: a 3MF holds every material's body; give it alone (got {} files)",
+                    first.display(),
+                    paths.len()
+                )));
+            }
+            let meshes = threemf::read_3mf(first)?;
+            if meshes.len() > inlets {
+                return Err(SliceError::TooManyMaterials {
+                    what: first.display().to_string(),
+                    found: meshes.len(),
+                    inlets,
+                    hint: " (materials of the 3MF's objects)",
+                });
+            }
+            slice_meshes(&meshes, config, opts, pitch)
+        }
         DesignKind::Stl => {
             if let Some(p) = paths
                 .iter()
@@ -215,18 +239,27 @@ pub fn load_design(
                 .iter()
                 .map(|p| mesh::read_stl(p))
                 .collect::<Result<Vec<_>, _>>()?;
-            voxel::slice_meshes(
-                &meshes,
-                &voxel::MeshOptions {
-                    pitch_mm: pitch,
-                    layer_mm: config.channel.layer_height_mm as f64,
-                    max_layers: opts.layers,
-                    min_run_mm: opts.min_run_mm,
-                    progress: opts.progress,
-                },
-            )
+            slice_meshes(&meshes, config, opts, pitch)
         }
     }
+}
+
+fn slice_meshes(
+    meshes: &[mesh::Mesh],
+    config: &Config,
+    opts: &SliceOptions,
+    pitch: f64,
+) -> Result<design::Design, SliceError> {
+    voxel::slice_meshes(
+        meshes,
+        &voxel::MeshOptions {
+            pitch_mm: pitch,
+            layer_mm: config.channel.layer_height_mm as f64,
+            max_layers: opts.layers,
+            min_run_mm: opts.min_run_mm,
+            progress: opts.progress,
+        },
+    )
 }
 
 /// Places a design, plans its toolpath and encodes the job.
