@@ -86,17 +86,37 @@ struct SyringeLine {
     n: f64,
     rate: f64,
     running: bool,
-    /// (time, +-rate) of each start and stop.
-    events: Vec<(f64, f64)>,
+    /// (time, +-rate) of each start and stop whose response has not settled yet.
+    events: VecDeque<(f64, f64)>,
+    /// Sum of the rate changes whose response has settled (to 1 - e^-35 ~ 1 - 6e-16).
+    settled: f64,
+    /// Time after which a response counts as settled, s.
+    settle_s: f64,
+    /// Outflow at the end of the last step (time, mm^3/s): the next step's start. A change
+    /// commanded since then happened at that time and adds nothing yet (F(0) = 0).
+    q_end: (f64, f64),
 }
 
 impl SyringeLine {
     fn q_at(&self, t: f64) -> f64 {
-        self.events
+        let moving: f64 = self
+            .events
             .iter()
             .map(|&(te, dr)| dr * dollop::config::Syringe::response(self.k, self.n, t - te))
-            .sum::<f64>()
-            .max(0.0)
+            .sum();
+        (self.settled + moving).max(0.0)
+    }
+
+    /// Folds responses settled by time `t` into `settled`, so a long job's outflow costs
+    /// the changes still in flight rather than every change since the start.
+    fn prune(&mut self, t: f64) {
+        while let Some(&(te, dr)) = self.events.front() {
+            if t - te <= self.settle_s {
+                break;
+            }
+            self.settled += dr;
+            self.events.pop_front();
+        }
     }
 }
 
@@ -141,7 +161,10 @@ impl Plant {
                     n: sy.lag_n as f64,
                     rate: speed * s,
                     running: false,
-                    events: Vec::new(),
+                    events: VecDeque::new(),
+                    settled: 0.0,
+                    settle_s: (35.0 / sy.lag_k as f64).powf(1.0 / sy.lag_n as f64),
+                    q_end: (f64::NAN, 0.0),
                 });
             }
             let law = FlowLaw::<f64>::new(&inlet.rheology, d);
@@ -213,7 +236,7 @@ impl Plant {
             if sy.running != open {
                 sy.running = open;
                 let dr = if open { sy.rate } else { -sy.rate };
-                sy.events.push((t, dr));
+                sy.events.push_back((t, dr));
             }
             return;
         }
@@ -241,14 +264,24 @@ impl Plant {
         if !self.syringes.is_empty() {
             // Outflow does not depend on the channel: Simpson over each step; the syringe
             // supplying more at mid-step feeds it.
+            for sy in self.syringes.iter_mut() {
+                sy.prune(self.t);
+            }
             while self.t < t_end - 1e-15 {
                 let t1 = (self.t + h).min(t_end);
                 let tm = 0.5 * (self.t + t1);
                 let mut dv = 0.0;
                 let mut best = (0.0, 0usize);
-                for (i, sy) in self.syringes.iter().enumerate() {
+                for (i, sy) in self.syringes.iter_mut().enumerate() {
+                    let q0 = if sy.q_end.0 == self.t {
+                        sy.q_end.1
+                    } else {
+                        sy.q_at(self.t)
+                    };
                     let qm = sy.q_at(tm);
-                    dv += (sy.q_at(self.t) + 4.0 * qm + sy.q_at(t1)) * (t1 - self.t) / 6.0;
+                    let q1 = sy.q_at(t1);
+                    sy.q_end = (t1, q1);
+                    dv += (q0 + 4.0 * qm + q1) * (t1 - self.t) / 6.0;
                     if qm > best.0 {
                         best = (qm, i);
                     }

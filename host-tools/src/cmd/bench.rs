@@ -346,7 +346,13 @@ pub fn chessboard_design(width: f64, square: f64, pitch: f64) -> Design {
 pub fn simulation(_ctx: &Ctx) -> anyhow::Result<()> {
     let config = example_config()?;
     let text = dollop_sim::bench::report(&config).map_err(|e| anyhow::anyhow!("{e}"))?;
-    print!("{text}");
+    print!("seed paper printhead, real valves: {text}");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/syringes.toml");
+    let syringes: Config = toml::from_str(
+        &std::fs::read_to_string(&path).with_context(|| format!("{}", path.display()))?,
+    )?;
+    let text = dollop_sim::bench::report(&syringes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    print!("two stepper syringes: {text}");
     Ok(())
 }
 
