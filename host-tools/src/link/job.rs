@@ -2,6 +2,7 @@
 //! (preamble CRC, body length, body CRC, command count) so a corrupt file is refused
 //! before anything is sent; plus a synthetic job maker for link tests and benchmarks.
 
+use crate::slicer::job_file;
 use dollop::job::{self, BodyDecoder, JobError, JobHeader};
 use dollop::{Command, Config};
 use std::path::Path;
@@ -37,62 +38,21 @@ impl JobFile {
         JobFile::parse(&bytes).map_err(|e| anyhow::anyhow!("job {}: {e}", path.display()))
     }
 
-    /// Builds a job from commands (the last should be `End`).
+    /// Builds a job from commands (the last should be `End`), as the slicer encodes one.
     pub fn build(
         config: &Config,
         start_um: [i32; 3],
         initial: u8,
         commands: &[Command],
     ) -> JobFile {
-        let mut body = Vec::new();
-        let mut buf = [0u8; job::MAX_COMMAND_LEN];
-        let mut lo = start_um;
-        let mut hi = start_um;
-        let mut at = start_um;
-        let mut prints = 0u32;
-        for c in commands {
-            if let Ok(b) = job::encode_command(c, &mut buf) {
-                body.extend_from_slice(b);
-            }
-            match *c {
-                Command::Print { dx, dy, .. } => {
-                    at[0] += dx;
-                    at[1] += dy;
-                    prints += 1;
-                }
-                Command::Travel { x, y, z } => at = [x, y, z],
-                Command::Layer { z } => at[2] = z,
-                _ => {}
-            }
-            for a in 0..3 {
-                lo[a] = lo[a].min(at[a]);
-                hi[a] = hi[a].max(at[a]);
-            }
-        }
-        let header = JobHeader {
-            format_version: job::FORMAT_VERSION,
-            config_hash: job::config_hash(config),
-            materials: heapless::Vec::new(),
-            bounds_min_um: lo,
-            bounds_max_um: hi,
-            start_um,
-            initial_material: initial,
-            print_segments: prints,
-            commands: commands.len() as u32,
-            body_len: body.len() as u32,
-            body_crc: job::body_crc(&body),
-        };
+        let body = job_file::encode_body(commands);
+        let header = job_file::header_for(commands, &body, start_um, initial, config);
         JobFile { header, body }
     }
 
     /// The file's bytes.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut pre = [0u8; job::MAX_HEADER_LEN + 16];
-        let mut out = job::encode_preamble(&self.header, &mut pre)
-            .map(|p| p.to_vec())
-            .unwrap_or_default();
-        out.extend_from_slice(&self.body);
-        out
+        job_file::job_bytes(&self.header, &self.body)
     }
 
     /// Print segments the header announces.
