@@ -4,32 +4,17 @@
 
 use super::CalError;
 use dollop::config::Config;
-use std::io::Write;
 use std::path::Path;
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename
+/// (the slicer's atomic write, with this module's error).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CalError> {
-    let wrap = |source: std::io::Error| CalError::Write {
-        path: path.to_path_buf(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(wrap)?;
-    // Temporary files are private (0600); a fragment or plot is an ordinary file.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(wrap)?;
-    }
-    tmp.write_all(bytes).map_err(wrap)?;
-    tmp.as_file().sync_all().map_err(wrap)?;
-    tmp.persist(path).map_err(|e| wrap(e.error))?;
-    Ok(())
+    crate::slicer::output::write_file_atomically(path, |w| w.write_all(bytes)).map_err(|source| {
+        CalError::Write {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
 }
 
 /// Reads and validates a machine config (TOML) for the build's inlet count.

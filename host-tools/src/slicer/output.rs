@@ -12,10 +12,17 @@ pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), SliceError> {
-    let err = |source| SliceError::Write {
+    write_file_atomically(path, fill).map_err(|source| SliceError::Write {
         path: path.to_path_buf(),
         source,
-    };
+    })
+}
+
+/// `write_atomic` with the I/O error as it is, for callers with their own error type.
+pub fn write_file_atomically(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -23,12 +30,11 @@ pub fn write_atomic(
     let mut tmp = tempfile::Builder::new()
         .prefix(".dollop-")
         .suffix(".part")
-        .tempfile_in(dir)
-        .map_err(err)?;
+        .tempfile_in(dir)?;
     {
         let mut w = BufWriter::new(tmp.as_file_mut());
-        fill(&mut w).map_err(err)?;
-        w.flush().map_err(err)?;
+        fill(&mut w)?;
+        w.flush()?;
     }
     // Temporary files are private (0600); outputs are ordinary files.
     #[cfg(unix)]
@@ -36,11 +42,10 @@ pub fn write_atomic(
         use std::os::unix::fs::PermissionsExt;
         let mode = std::fs::metadata(path).map_or(0o644, |m| m.permissions().mode() & 0o7777);
         tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(mode))
-            .map_err(err)?;
+            .set_permissions(std::fs::Permissions::from_mode(mode))?;
     }
-    tmp.as_file().sync_all().map_err(err)?;
-    tmp.persist(path).map_err(|e| err(e.error))?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
     Ok(())
 }
 
