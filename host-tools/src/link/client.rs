@@ -279,9 +279,18 @@ impl<T: Transport> Client<T> {
     /// A request with reconnects on transient failures. Only for requests that may be
     /// carried out twice without harm (all but jogs).
     pub fn call(&mut self, req: &Request<'_>) -> Result<Reply, LinkError> {
+        self.retrying(|c| c.call_once(req))
+    }
+
+    /// Runs `attempt`, reconnecting and running it again after each transient failure,
+    /// up to `reconnects` times; a failed reconnect that is itself transient uses no try.
+    fn retrying<V>(
+        &mut self,
+        mut attempt: impl FnMut(&mut Self) -> Result<V, LinkError>,
+    ) -> Result<V, LinkError> {
         let mut left = self.opts.reconnects;
         loop {
-            match self.call_once(req) {
+            match attempt(self) {
                 Err(e) if e.is_transient() && left > 0 => {
                     left -= 1;
                     match self.reconnect() {
@@ -334,23 +343,10 @@ impl<T: Transport> Client<T> {
         job: &JobFile,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<(u32, u32), LinkError> {
-        let mut left = self.opts.reconnects;
-        loop {
-            let r = self
-                .upload_once(job, progress)
-                .and_then(|()| self.wait_checked(job));
-            match r {
-                Err(e) if e.is_transient() && left > 0 => {
-                    left -= 1;
-                    match self.reconnect() {
-                        Ok(_) => {}
-                        Err(e) if e.is_transient() => continue,
-                        Err(e) => return Err(e),
-                    }
-                }
-                r => return r,
-            }
-        }
+        self.retrying(|c| {
+            c.upload_once(job, progress)
+                .and_then(|()| c.wait_checked(job))
+        })
     }
 
     fn upload_once(
