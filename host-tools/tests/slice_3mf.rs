@@ -281,6 +281,18 @@ fn broken_and_inconsistent_files_are_refused_with_the_reason() {
     );
     refused(&three, "3");
 
+    let with_stl = slicer::slice_files(
+        &[designs_dir().join("cube-shell.stl"), three.clone()],
+        &config(),
+        &SliceOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        with_stl.contains("three.3mf: cannot mix with STL bodies"),
+        "{with_stl}"
+    );
+
     let mut open = object(1, &shell, None, id);
     if let Some(m) = open.mesh.as_mut() {
         m.triangles.triangle.pop();

@@ -223,7 +223,8 @@ pub fn load_design(
                 .find(|(_, k)| **k != DesignKind::Stl)
             {
                 return Err(SliceError::Option(format!(
-                    "{}: cannot mix images with STL bodies",
+                    "{}: cannot mix with STL bodies (give one STL per material, one image, \
+                     or one 3MF)",
                     p.0.display()
                 )));
             }
