@@ -27,9 +27,9 @@ pub const PLAN_CAPACITY: usize = 256;
 pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
 /// Cycles a late `tick` may catch up at once before it is a fault.
 pub const MAX_CATCH_UP: u64 = 4;
-/// Prediction chunks integrated per unit of prediction work. The two kinds of prediction
-/// (switch, stop) take turns, one unit (a restart or a chunk) each on alternate cycles, so
-/// a cycle never carries more than one.
+/// Units of prediction work (a restart, or one of a chunk's two halves) per turn. The two
+/// kinds of prediction (switch, stop) take turns, one unit each on alternate cycles, so a
+/// cycle never carries more than one.
 pub const PREDICT_BUDGET: u32 = 1;
 /// Cycles between the starts of successive predictions of one kind (2 ms at 10 kHz);
 /// in between, the last two answers are extrapolated.
@@ -1038,6 +1038,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         // Material switch.
+        let mut switched = false;
         if let Some(&(u_b, m)) = self.boundaries.front() {
             if m == self.entry_material {
                 // Already the material entering: nothing to switch.
@@ -1050,7 +1051,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let due = entry >= u_b
                     || self
                         .switch
-                        .estimate(&self.model, Goal::Switch(m), self.cycle % 2 == 0)
+                        .estimate(&self.model, Goal::Switch(m), self.work(0))
                         .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
                 if due {
                     self.model.command(1 << m);
@@ -1059,15 +1060,16 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     self.boundaries.pop_front();
                     self.switch.reset();
                     self.stop.reset();
+                    switched = true;
                 }
             }
         }
         // End of the bead.
         if let Some(end) = self.bead_end() {
             if self.model.commanded() != 0 && self.head + self.window >= end {
-                if let Some(tail) = self
-                    .stop
-                    .estimate(&self.model, Goal::Stop, self.cycle % 2 == 1)
+                if let Some(tail) =
+                    self.stop
+                        .estimate(&self.model, Goal::Stop, self.work(1) && !switched)
                 {
                     if self.head + Vol::from_mm3(tail) >= end {
                         self.model.command(0);
@@ -1079,6 +1081,16 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         Ok(())
+    }
+
+    /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs
+    /// this cycle. The kinds take turns; a cycle whose flow step took its slow path
+    /// (a slug start crossing the exit or landing) does none, nor does the stop after a
+    /// switch was commanded in the same cycle, so that the dearest steps and a prediction
+    /// unit never share a cycle. These come a few times per material change, so the
+    /// predictions lose a unit or two per switch.
+    fn work(&self, parity: u64) -> bool {
+        self.cycle % 2 == parity && !self.model.crossed()
     }
 
     /// Plan volume where the current bead ends, if its last segment is planned.

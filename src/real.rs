@@ -59,6 +59,11 @@ pub trait Real:
     /// `self^y` for `self >= 0`, for the per-cycle flow solve. f32 uses `poly::powf`
     /// (pure f32, under 2e-6 relative error for exponents up to 1); f64 uses libm.
     fn pow_fast(self, y: Self) -> Self;
+    /// log2 of `self > 0`, for the flow solve, which raises one flow to several flow
+    /// indices: `exp2_fast(n * q.log2_fast())` is `q^n` at the accuracy of `pow_fast`.
+    fn log2_fast(self) -> Self;
+    /// 2^self (see `log2_fast`).
+    fn exp2_fast(self) -> Self;
     /// Absolute value.
     fn abs(self) -> Self;
     /// Largest integer not above.
@@ -145,6 +150,14 @@ impl Real for f32 {
     #[inline]
     fn pow_fast(self, y: Self) -> Self {
         crate::poly::powf(self, y)
+    }
+    #[inline]
+    fn log2_fast(self) -> Self {
+        crate::poly::log2_any(self)
+    }
+    #[inline]
+    fn exp2_fast(self) -> Self {
+        crate::poly::exp2(self)
     }
     #[inline]
     fn abs(self) -> Self {
@@ -247,6 +260,14 @@ impl Real for f64 {
     #[inline]
     fn pow_fast(self, y: Self) -> Self {
         libm::pow(self, y)
+    }
+    #[inline]
+    fn log2_fast(self) -> Self {
+        libm::log2(self)
+    }
+    #[inline]
+    fn exp2_fast(self) -> Self {
+        libm::exp2(self)
     }
     #[inline]
     fn abs(self) -> Self {

@@ -82,19 +82,33 @@ impl<R: Real> StepGen<R> {
     }
 
     /// Steps to the position nearest `mm` over `cycles` cycles (a late tick catching up),
-    /// or refuses without stepping any axis.
+    /// or refuses without stepping any axis. The per-cycle path: one pass computes and
+    /// checks every axis before any steps (no `target`/`check` round trip through arrays).
     pub fn move_over(
         &mut self,
         mm: [R; 3],
         cycles: u32,
         out: &mut impl Outputs,
     ) -> Result<(), StepRateExceeded> {
-        let t = self.check(mm, cycles)?;
-        for (a, axis) in Axis::ALL.iter().enumerate() {
-            let d = t[a] - self.position[a];
-            if d != 0 {
-                out.step(*axis, d > 0, d.unsigned_abs() as u32);
-                self.position[a] = t[a];
+        let max = self.max_per_cycle.saturating_mul(cycles.max(1)) as u64;
+        let d = [
+            (mm[0] * self.steps_per_mm[0]).round_i64() - self.position[0],
+            (mm[1] * self.steps_per_mm[1]).round_i64() - self.position[1],
+            (mm[2] * self.steps_per_mm[2]).round_i64() - self.position[2],
+        ];
+        for (a, &da) in d.iter().enumerate() {
+            if da.unsigned_abs() > max {
+                return Err(StepRateExceeded {
+                    axis: Axis::ALL[a],
+                    steps: da.unsigned_abs().min(u32::MAX as u64) as u32,
+                    max: max as u32,
+                });
+            }
+        }
+        for (a, &da) in d.iter().enumerate() {
+            if da != 0 {
+                out.step(Axis::ALL[a], da > 0, da.unsigned_abs() as u32);
+                self.position[a] += da;
             }
         }
         Ok(())

@@ -32,6 +32,8 @@ pub struct Channel<const N: usize> {
     in_channel: [Vol; N],
     /// Index of the slug at the channel exit.
     exit_idx: usize,
+    /// The last `advance` crossed a slug start at the exit or the plate (its slow path).
+    crossed: bool,
 }
 
 /// The channel could not take another slug.
@@ -58,6 +60,7 @@ impl<const N: usize> Channel<N> {
             v_transit,
             in_channel,
             exit_idx: 0,
+            crossed: false,
         }
     }
 
@@ -88,6 +91,10 @@ impl<const N: usize> Channel<N> {
     pub fn landing(&self) -> u8 {
         self.slugs.front().map(|s| s.material).unwrap_or(0)
     }
+    /// True when the last `advance` crossed a slug start at the exit or the plate.
+    pub fn crossed(&self) -> bool {
+        self.crossed
+    }
     /// Cumulative entered volume.
     pub fn entered(&self) -> Vol {
         self.entered
@@ -117,11 +124,12 @@ impl<const N: usize> Channel<N> {
     pub fn exit_changes<R: crate::real::Real>(&self, out: &mut [(R, u8)]) -> usize {
         let exit = self.entered - self.v_channel;
         let mut n = 0;
-        while n < out.len() {
-            match self.slug(self.exit_idx + 1 + n) {
-                Some(s) => out[n] = ((s.start - exit).mm3(), s.material),
-                None => break,
-            }
+        // One pass of the deque's iterator: indexing it slug by slug costs a split each.
+        for (o, s) in out
+            .iter_mut()
+            .zip(self.slugs.iter().skip(self.exit_idx + 1))
+        {
+            *o = ((s.start - exit).mm3(), s.material);
             n += 1;
         }
         n
@@ -144,6 +152,7 @@ impl<const N: usize> Channel<N> {
     /// channel into the filament and lands on the plate. Returns how many material changes
     /// landed on the plate during this advance.
     pub fn advance(&mut self, dv: Vol) -> u32 {
+        self.crossed = false;
         if dv.0 <= 0 {
             return 0;
         }
@@ -171,6 +180,7 @@ impl<const N: usize> Channel<N> {
             self.entered += dv;
             return 0;
         }
+        self.crossed = true;
         let newest = self.newest() as usize;
         if let Some(v) = self.in_channel.get_mut(newest) {
             *v += dv;

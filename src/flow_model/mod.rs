@@ -71,6 +71,11 @@ pub struct FlowModel<R, const N: usize> {
     inv_dt: R,
     next: u64,
     q: R,
+    /// The solve's last two answers (unrounded: a tail too weak to move one volume unit a
+    /// cycle still warm-starts the next solve), for the extrapolated warm start.
+    solved: [R; 2],
+    /// The last step moved a slug start past the channel exit or onto the plate.
+    crossed: bool,
     feeding: Option<u8>,
     all_linear: bool,
     commanded: u32,
@@ -122,6 +127,8 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             inv_dt: R::ONE / dt,
             next: 0,
             q: R::ZERO,
+            solved: [R::ZERO; 2],
+            crossed: false,
             feeding: None,
             all_linear,
             commanded: 0,
@@ -190,6 +197,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         if let (Some((f, _)), true) = (best, dv.0 > 0) {
             self.channel.feed(f as u8)?;
             changes = self.channel.advance(dv);
+            self.crossed = self.channel.crossed();
             self.feeding = Some(f as u8);
         }
         self.q = dv.mm3::<R>() * self.inv_dt;
@@ -201,6 +209,13 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         })
     }
 
+    /// True when the last step moved a slug start past the channel exit or onto the
+    /// plate: the step's slow path, which the executor does not pile prediction work on.
+    #[inline]
+    pub fn crossed(&self) -> bool {
+        self.crossed
+    }
+
     /// The valve mask last commanded.
     #[inline]
     pub fn commanded(&self) -> u32 {
@@ -209,6 +224,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
 
     /// Integrates one control cycle.
     pub fn step(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
+        self.crossed = false;
         if !self.plungers.is_empty() {
             return self.step_syringes();
         }
@@ -228,6 +244,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             }
         }
         let Some((f, impulse)) = best else {
+            self.solved = [R::ZERO; 2];
             self.q = R::ZERO;
             return Ok(CycleFlow {
                 dv: Vol::ZERO,
@@ -240,18 +257,26 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             self.advance_linear(f, impulse)?
         } else {
             let vin = self.vin();
+            // Warm start on the line through the last two flows: the flow changes smoothly
+            // between content changes, so the guess is off by second-order terms only.
+            let [last, before] = self.solved;
+            let trend = last + (last - before);
+            let guess = if trend > R::ZERO { trend } else { last };
             let q = solve::flow_within(
                 &self.laws,
                 &vin,
                 impulse * self.inv_dt,
-                self.q,
+                guess,
                 R::of(solve::CYCLE_TOLERANCE),
                 solve::CYCLE_ITERATIONS,
             );
+            self.solved = [q, last];
             let dv = Vol::from_mm3(q * dt);
             if dv.0 > 0 {
                 self.channel.feed(f as u8)?;
-                (dv, self.channel.advance(dv))
+                let c = self.channel.advance(dv);
+                self.crossed = self.channel.crossed();
+                (dv, c)
             } else {
                 (Vol::ZERO, 0)
             }
@@ -279,9 +304,10 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         let mut total = Vol::ZERO;
         let mut changes = 0;
         let a_in = self.laws[feeding].a;
+        // Resistance grows by k per mm^3 that passes: summed once, then kept up to date.
+        let mut r0 = self.resistance_linear();
         // Each pass crosses one slug boundary at the exit; bounded by the slug count.
         for pass in 0..=channel::SLUG_CAPACITY {
-            let r0 = self.resistance_linear();
             let k = a_in - self.laws[self.channel.at_exit() as usize].a;
             let dv = volume_for_impulse(r0, k, impulse);
             if pass == 0 {
@@ -295,12 +321,15 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                 Some(room) if Vol::from_mm3(dv) > room && room.0 > 0 => {
                     let rm: R = room.mm3();
                     impulse -= r0 * rm + k * rm * rm * R::HALF;
+                    r0 += k * rm;
                     changes += self.channel.advance(room);
+                    self.crossed = true;
                     total += room;
                 }
                 _ => {
                     let d = Vol::from_mm3(dv);
                     changes += self.channel.advance(d);
+                    self.crossed |= self.channel.crossed();
                     total += d;
                     break;
                 }

@@ -27,6 +27,14 @@ pub enum Outcome<R> {
     Never,
 }
 
+/// Longest chunk of the pneumatic look-ahead, cycles: twice the power table, whose last
+/// entry times another covers the rest. A chunk is two units of work
+/// (lines, volume), so chunks this long keep a prediction as many units long as one of
+/// `MAX_CHUNK`-cycle chunks done whole. The lines are exact over any length; the channel
+/// volume is exact for Newtonian content and, for shear-thinning content, solved at the
+/// chunk's mean pressure.
+const LINE_CHUNK: usize = 2 * MAX_CHUNK;
+
 /// Upcoming exit changes the prediction follows.
 const EXITS: usize = 6;
 /// Horizon, in cycles, after which a prediction gives up (5 s at 10 kHz).
@@ -37,10 +45,14 @@ const HORIZON_CYCLES: u64 = 50_000;
 struct PLine<R> {
     p: R,
     open: bool,
-    /// Pending (cycle, open) changes; `ev[next..len]` are still to act.
-    ev: [(u64, bool); PENDING_CAP],
+    /// Pending (cycle, open) changes, cycles counted from the prediction's start (the
+    /// horizon keeps them within u32, which the M4 compares in one instruction);
+    /// `ev[next..len]` are still to act.
+    ev: [(u32, bool); PENDING_CAP],
     len: u8,
     next: u8,
+    /// Bit i set when `ev[i]` opens the valve: a pending open is one shift and test.
+    opens: u8,
 }
 
 impl<R: Real> PLine<R> {
@@ -51,6 +63,7 @@ impl<R: Real> PLine<R> {
             ev: [(0, false); PENDING_CAP],
             len: 0,
             next: 0,
+            opens: 0,
         }
     }
     /// Becomes the line `l` with `open` commanded before cycle `next`, by the same rule as
@@ -61,33 +74,40 @@ impl<R: Real> PLine<R> {
         self.open = l.open;
         self.next = 0;
         self.len = 0;
-        let at = next
-            + if open {
-                params.open_delay
-            } else {
-                params.close_delay
-            } as u64;
+        self.opens = 0;
+        // Cycles from `next`: pending changes act within a dead time of it.
+        let at = if open {
+            params.open_delay
+        } else {
+            params.close_delay
+        };
         let change = open != l.commanded;
-        for &e in l.pending.iter() {
-            if change && e.0 >= at {
+        let (front, back) = l.pending.as_slices();
+        for &(t, o) in front.iter().chain(back) {
+            let t = t.saturating_sub(next).min(u32::MAX as u64) as u32;
+            if change && t >= at {
                 break;
             }
-            self.ev[self.len as usize] = e;
+            self.ev[self.len as usize] = (t, o);
+            self.opens |= (o as u8) << self.len;
             self.len += 1;
         }
         if change {
             if self.len as usize == PENDING_CAP {
                 self.ev.copy_within(1.., 0);
+                self.opens >>= 1;
                 self.len -= 1;
             }
             self.ev[self.len as usize] = (at, open);
+            self.opens |= (open as u8) << self.len;
             self.len += 1;
         }
     }
 
-    /// Acts on changes due by cycle `k`; returns the cycle of the next one still pending.
+    /// Acts on changes due by cycle `k` (from the start); returns the cycle of the next
+    /// one still pending.
     #[inline]
-    fn apply_due(&mut self, k: u64) -> Option<u64> {
+    fn apply_due(&mut self, k: u32) -> Option<u32> {
         while self.next < self.len {
             let (t, open) = self.ev[self.next as usize];
             if t > k {
@@ -100,10 +120,22 @@ impl<R: Real> PLine<R> {
     }
     #[inline]
     fn pending_open(&self) -> bool {
-        self.ev[self.next as usize..self.len as usize]
-            .iter()
-            .any(|e| e.1)
+        (self.opens >> self.next) != 0
     }
+}
+
+/// A chunk between its two halves: what the lines did, for the volume half.
+#[derive(Clone, Copy, Debug)]
+struct Stage<R> {
+    j: u32,
+    span: R,
+    best: Option<(usize, R)>,
+    start_margin: R,
+    end_margin: R,
+    lead_positive: bool,
+    settled: bool,
+    any_open: bool,
+    p_max: R,
 }
 
 /// A prediction in progress.
@@ -120,8 +152,13 @@ pub struct Prediction<R, const N: usize> {
     exit_pos: R,
     start: u64,
     k: u64,
+    /// A chunk whose lines are integrated and whose volume is still to do.
+    staged: Option<Stage<R>>,
     vol: R,
     q: R,
+    /// Mean junction pressure that drove `q`: the next chunk's solve starts from `q`
+    /// scaled by the pressure ratio.
+    p_last: R,
     p_scale: R,
     /// Syringe machines: the plungers as they would be after the hypothetical command.
     plungers: [Plunger<R>; N],
@@ -149,8 +186,10 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             exit_pos: R::ZERO,
             start: 0,
             k: 0,
+            staged: None,
             vol: R::ZERO,
             q: R::ZERO,
+            p_last: R::ZERO,
             p_scale: R::ZERO,
             plungers: [Plunger::default(); N],
             n_plungers: 0,
@@ -179,7 +218,12 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         }
         self.n_exits = model.channel().exit_changes(&mut self.exits);
         self.goal = goal;
-        for (v, c) in self.vin.iter_mut().zip(model.channel().in_channel()) {
+        // Only the machine's inlets: the rest of the capacity stays zero.
+        let inlets = model.laws().len();
+        for (v, c) in self.vin[..inlets]
+            .iter_mut()
+            .zip(&model.channel().in_channel()[..inlets])
+        {
             *v = c.mm3();
         }
         self.exit_next = 0;
@@ -187,8 +231,10 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.exit_pos = R::ZERO;
         self.start = next;
         self.k = next;
+        self.staged = None;
         self.vol = R::ZERO;
         self.q = model.q();
+        self.p_last = model.junction_pa();
         self.p_scale = p_scale;
         self.n_plungers = model.plungers().len().min(N);
         for (i, (dst, src)) in self.plungers.iter_mut().zip(model.plungers()).enumerate() {
@@ -214,123 +260,158 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.start
     }
 
-    /// Integrates at most `budget` chunks; `Some` once finished.
+    /// Does at most `budget` units of work; `Some` once finished. A chunk takes two units
+    /// (its lines, then its volume), so that no control cycle carries a whole chunk.
     pub fn advance(&mut self, model: &FlowModel<R, N>, budget: u32) -> Option<Outcome<R>> {
         if self.n_plungers > 0 {
             return self.advance_syringes(model, budget);
         }
+        for _ in 0..budget {
+            let done = match self.staged.take() {
+                None => self.chunk_lines(model),
+                Some(stage) => self.chunk_flow(model, stage),
+            };
+            if done.is_some() {
+                return done;
+            }
+        }
+        None
+    }
+
+    /// First half of a chunk: acts on due valve changes, checks whether a switch is
+    /// already reached, and integrates every line over the chunk (up to the next change).
+    fn chunk_lines(&mut self, model: &FlowModel<R, N>) -> Option<Outcome<R>> {
         let params = model.params();
         let powers = model.powers();
-        let dt = model.dt();
         let n = self.n_lines;
         let to = match self.goal {
             Goal::Switch(t) => t as usize,
             Goal::Stop => usize::MAX,
         };
-        for _ in 0..budget {
-            if self.k - self.start > HORIZON_CYCLES {
-                return Some(Outcome::Never);
+        if self.k - self.start > HORIZON_CYCLES {
+            return Some(Outcome::Never);
+        }
+        let rel = (self.k - self.start) as u32;
+        // Changes act at chunk starts: end the chunk before the next pending one.
+        let mut j = LINE_CHUNK as u32;
+        let mut any_open = false;
+        // The goal's lead is for good once its valve acts open and every other acts
+        // closed with nothing pending: its line then only rises, the others only fall.
+        // Before that an old switch still in its dead time may flip the junction once
+        // more (A -> B -> A within a few dead times).
+        let mut settled = true;
+        let (mut lead, mut other) = (R::ZERO, R::ZERO);
+        for (i, l) in self.lines[..n].iter_mut().enumerate() {
+            if let Some(t) = l.apply_due(rel) {
+                j = j.min(t - rel);
             }
-            // Changes act at chunk starts: end the chunk before the next pending one.
-            let mut j = MAX_CHUNK as u64;
-            let mut any_open = false;
-            // The goal's lead is for good once its valve acts open and every other acts
-            // closed with nothing pending: its line then only rises, the others only fall.
-            // Before that an old switch still in its dead time may flip the junction once
-            // more (A -> B -> A within a few dead times).
-            let mut settled = true;
-            let (mut lead, mut other) = (R::ZERO, R::ZERO);
-            for (i, l) in self.lines[..n].iter_mut().enumerate() {
-                if let Some(t) = l.apply_due(self.k) {
-                    j = j.min(t - self.k);
-                }
-                let pending_open = l.pending_open();
-                any_open |= l.open || pending_open;
-                if i == to {
-                    settled &= l.open && l.next == l.len;
-                    lead = l.p;
-                } else {
-                    settled &= !l.open && !pending_open;
-                    other = other.max(l.p);
-                }
+            let pending_open = l.pending_open();
+            any_open |= l.open || pending_open;
+            if i == to {
+                settled &= l.open && l.next == l.len;
+                lead = l.p;
+            } else {
+                settled &= !l.open && !pending_open;
+                other = other.max(l.p);
             }
-            let j = j.max(1) as usize;
-            if to != usize::MAX && settled {
-                // Right after the changes acted (instant lines jump to their target).
-                let now = |l: &PLine<R>, i: usize| {
-                    let (g, tau, _) = params[i].drive(l.open);
-                    if tau <= R::ZERO {
-                        g
-                    } else {
-                        l.p
-                    }
-                };
-                let mut o = R::ZERO;
-                for (i, l) in self.lines[..n].iter().enumerate() {
-                    if i != to {
-                        o = o.max(now(l, i));
-                    }
-                }
-                let g = now(&self.lines[to], to);
-                if g > R::ZERO && g >= o {
-                    return Some(Outcome::Volume(self.vol));
-                }
-            }
-            let start_margin = other - lead;
-            // Integrate every line over j cycles.
-            let span = dt * R::from_u32(j as u32);
-            let mut best: Option<(usize, R)> = None;
-            let mut p_max = R::ZERO;
-            let (mut lead, mut other) = (R::ZERO, R::ZERO);
-            for (i, l) in self.lines[..n].iter_mut().enumerate() {
+        }
+        let j = j.max(1) as usize;
+        if to != usize::MAX && settled {
+            // Right after the changes acted (instant lines jump to their target).
+            let now = |l: &PLine<R>, i: usize| {
                 let (g, tau, _) = params[i].drive(l.open);
-                let decay = powers[i][if l.open { 0 } else { 1 }][j];
-                let gap = l.p - g;
-                let imp = g * span + gap * tau * (R::ONE - decay);
-                l.p = g + gap * decay;
-                p_max = p_max.max(l.p);
-                if i == to {
-                    lead = l.p;
+                if tau <= R::ZERO {
+                    g
                 } else {
-                    other = other.max(l.p);
+                    l.p
                 }
-                if imp > R::ZERO && best.is_none_or(|(_, b)| imp > b) {
-                    best = Some((i, imp));
+            };
+            let mut o = R::ZERO;
+            for (i, l) in self.lines[..n].iter().enumerate() {
+                if i != to {
+                    o = o.max(now(l, i));
                 }
             }
-            let dv = match best {
-                Some((f, imp)) => self.chunk_volume(model, f, imp, span),
+            let g = now(&self.lines[to], to);
+            if g > R::ZERO && g >= o {
+                return Some(Outcome::Volume(self.vol));
+            }
+        }
+        let start_margin = other - lead;
+        // Integrate every line over j cycles.
+        let span = model.dt() * R::from_u32(j as u32);
+        let mut best: Option<(usize, R)> = None;
+        let mut p_max = R::ZERO;
+        let (mut lead, mut other) = (R::ZERO, R::ZERO);
+        for (i, l) in self.lines[..n].iter_mut().enumerate() {
+            let (g, tau, _) = params[i].drive(l.open);
+            let row = &powers[i][if l.open { 0 } else { 1 }];
+            let decay = if j > MAX_CHUNK {
+                row[MAX_CHUNK] * row[j - MAX_CHUNK]
+            } else {
+                row[j]
+            };
+            let gap = l.p - g;
+            let imp = g * span + gap * tau * (R::ONE - decay);
+            l.p = g + gap * decay;
+            p_max = p_max.max(l.p);
+            if i == to {
+                lead = l.p;
+            } else {
+                other = other.max(l.p);
+            }
+            if imp > R::ZERO && best.is_none_or(|(_, b)| imp > b) {
+                best = Some((i, imp));
+            }
+        }
+        self.staged = Some(Stage {
+            j: j as u32,
+            span,
+            best,
+            start_margin,
+            end_margin: other - lead,
+            lead_positive: lead > R::ZERO,
+            settled,
+            any_open,
+            p_max,
+        });
+        None
+    }
+
+    /// Second half of a chunk: the volume through the channel, the switch crossing, the
+    /// channel copy and the stop's end.
+    fn chunk_flow(&mut self, model: &FlowModel<R, N>, st: Stage<R>) -> Option<Outcome<R>> {
+        let params = model.params();
+        let switch = matches!(self.goal, Goal::Switch(_));
+        let dv = match st.best {
+            Some((f, imp)) => self.chunk_volume(model, f, imp, st.span),
+            None => R::ZERO,
+        };
+        self.k += st.j as u64;
+        if switch && st.end_margin <= R::ZERO && st.lead_positive && st.settled {
+            // Crossed inside the chunk: interpolate the pressure difference.
+            let (m0, m1) = (st.start_margin, st.end_margin);
+            let f = if m0 > m1 {
+                (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
+            } else {
+                R::ZERO
+            };
+            return Some(Outcome::Volume(self.vol + f * dv));
+        }
+        if let Some((f, imp)) = st.best {
+            self.take(f as u8, dv);
+            self.p_last = imp / st.span;
+        }
+        self.q = dv / st.span;
+        self.vol += dv;
+        if !switch && !st.any_open && st.p_max <= self.p_scale * R::of(0.05) {
+            // What is left decays with the line: p ~ e^(-t/tau) gives Q ~ e^(-t/(n tau))
+            // through a power-law channel, so about q n tau more.
+            let tail = match st.best {
+                Some((f, _)) => dv / st.span * params[f].tau_decay * model.laws()[f].n,
                 None => R::ZERO,
             };
-            self.k += j as u64;
-            if to != usize::MAX {
-                let end_margin = other - lead;
-                if end_margin <= R::ZERO && lead > R::ZERO && settled {
-                    // Crossed inside the chunk: interpolate the pressure difference.
-                    let f = if start_margin > end_margin {
-                        (start_margin / (start_margin - end_margin))
-                            .min(R::ONE)
-                            .max(R::ZERO)
-                    } else {
-                        R::ZERO
-                    };
-                    return Some(Outcome::Volume(self.vol + f * dv));
-                }
-            }
-            if let Some((f, _)) = best {
-                self.take(f as u8, dv);
-            }
-            self.q = dv / span;
-            self.vol += dv;
-            if to == usize::MAX && !any_open && p_max <= self.p_scale * R::of(0.05) {
-                // What is left decays with the line: p ~ e^(-t/tau) gives Q ~ e^(-t/(n tau))
-                // through a power-law channel, so about q n tau more.
-                let tail = match best {
-                    Some((f, _)) => dv / span * params[f].tau_decay * model.laws()[f].n,
-                    None => R::ZERO,
-                };
-                return Some(Outcome::Volume(self.vol + tail));
-            }
+            return Some(Outcome::Volume(self.vol + tail));
         }
         None
     }
@@ -419,13 +500,22 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             let k = laws[feeding].a - laws[self.exit_material as usize].a;
             super::volume_for_impulse(r0, k, imp)
         } else {
+            // Over a chunk the pressure may change by tens of percent: start from the last
+            // flow scaled as a power law of the feeding paste would scale (Q ~ P^(1/n)),
+            // which the Newton steps then correct for mixed content and yield.
+            let p = imp / span;
+            let guess = if self.p_last > R::ZERO && self.q > R::ZERO {
+                self.q * (p / self.p_last).pow_fast(R::ONE / laws[feeding].n)
+            } else {
+                self.q
+            };
             solve::flow_within(
                 laws,
                 &self.vin,
-                imp / span,
-                self.q,
+                p,
+                guess,
                 R::of(solve::PREDICT_TOLERANCE),
-                solve::CYCLE_ITERATIONS,
+                solve::PREDICT_ITERATIONS,
             ) * span
         }
     }
