@@ -218,7 +218,12 @@ mod tests {
         // The stopping rule's bound: a Newton step s from q leaves the answer within
         // (s/Q)^2 / 2 of the root, relative, for mixed power-law and yield content.
         let l = laws();
-        for v in [[0.4, 0.4, 0.4], [0.0, 1.2, 0.0], [0.1, 0.0, 1.1], [0.6, 0.6, 0.0]] {
+        for v in [
+            [0.4, 0.4, 0.4],
+            [0.0, 1.2, 0.0],
+            [0.1, 0.0, 1.1],
+            [0.6, 0.6, 0.0],
+        ] {
             for p in [500.0, 3000.0, 20000.0] {
                 let root = flow(&l, &v, p, 0.0);
                 for off in [-0.2, -0.05, -3e-3, 1e-3, 0.04, 0.3] {
@@ -226,7 +231,10 @@ mod tests {
                     let one = flow_within(&l, &v, p, q, 1e-30, 1);
                     let s = (one - q) / one;
                     let err = ((one - root) / root).abs();
-                    assert!(err <= s * s / 2.0 * 1.01 + 1e-14, "{v:?} {p} {off}: {err:e} {s:e}");
+                    assert!(
+                        err <= s * s / 2.0 * 1.01 + 1e-14,
+                        "{v:?} {p} {off}: {err:e} {s:e}"
+                    );
                 }
             }
         }
