@@ -27,9 +27,9 @@ pub const PLAN_CAPACITY: usize = 256;
 pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
 /// Cycles a late `tick` may catch up at once before it is a fault.
 pub const MAX_CATCH_UP: u64 = 4;
-/// Units of prediction work (a restart, or one of a chunk's two halves) per turn. The two
-/// kinds of prediction (switch, stop) take turns, one unit each on alternate cycles, so a
-/// cycle never carries more than one.
+/// Prediction chunks integrated per unit of prediction work. The two kinds of prediction
+/// (switch, stop) take turns, one unit (a restart or a chunk) each on alternate cycles, so
+/// a cycle never carries more than one.
 pub const PREDICT_BUDGET: u32 = 1;
 /// Cycles between the starts of successive predictions of one kind (2 ms at 10 kHz);
 /// in between, the last two answers are extrapolated.
@@ -277,17 +277,36 @@ impl<R: Real, const N: usize> Tracker<R, N> {
         self.last = None;
         self.prev = None;
     }
-    /// Keeps a prediction of `goal` running, doing at most one unit of work (a restart or
-    /// one chunk) if `work` allows; returns the current estimate, if any.
-    fn estimate(&mut self, model: &FlowModel<R, N>, goal: Goal, work: bool) -> Option<R> {
+    /// The current answer for `goal`: the last two predictions extrapolated to the
+    /// present (a new goal forgets the old one's).
+    fn answer(&mut self, model: &FlowModel<R, N>, goal: Goal) -> Option<R> {
         if self.goal != Some(goal) {
             self.reset();
             self.goal = Some(goal);
         }
+        match (self.last, self.prev) {
+            (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
+                // A lead changes because time passes; it cannot change faster than the
+                // flow itself, which bounds a slope taken across a jump in the state.
+                let cap = model.q() * model.dt();
+                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0)))
+                    .max(-cap)
+                    .min(cap);
+                let now = model.next_cycle();
+                Some((v1 + slope * R::from_u32(cycles32(now - t1))).max(R::ZERO))
+            }
+            (Some((_, v1)), _) => Some(v1),
+            _ => None,
+        }
+    }
+
+    /// One unit of work (a restart or half a chunk) on the goal of the last `answer`.
+    /// Done after the cycle's decision, so a cycle that acts on an answer (and so forgets
+    /// the prediction) spends nothing on it.
+    fn work(&mut self, model: &FlowModel<R, N>) {
+        let Some(goal) = self.goal else { return };
         let now = model.next_cycle();
-        if !work {
-            // Nothing this cycle: answer from what is known.
-        } else if !self.running && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL) {
+        if !self.running && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL) {
             self.pred.restart(model, goal);
             self.running = true;
         } else if self.running {
@@ -305,19 +324,6 @@ impl<R: Real, const N: usize> Tracker<R, N> {
                     }
                 }
             }
-        }
-        match (self.last, self.prev) {
-            (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
-                // A lead changes because time passes; it cannot change faster than the
-                // flow itself, which bounds a slope taken across a jump in the state.
-                let cap = model.q() * model.dt();
-                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0)))
-                    .max(-cap)
-                    .min(cap);
-                Some((v1 + slope * R::from_u32(cycles32(now - t1))).max(R::ZERO))
-            }
-            (Some((_, v1)), _) => Some(v1),
-            _ => None,
         }
     }
 }
@@ -1051,8 +1057,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let due = entry >= u_b
                     || self
                         .switch
-                        .estimate(&self.model, Goal::Switch(m), self.work(0))
+                        .answer(&self.model, Goal::Switch(m))
                         .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
+                if !due && self.work(0) {
+                    self.switch.work(&self.model);
+                }
                 if due {
                     self.model.command(1 << m);
                     self.want = Some(m);
@@ -1067,16 +1076,17 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // End of the bead.
         if let Some(end) = self.bead_end() {
             if self.model.commanded() != 0 && self.head + self.window >= end {
-                if let Some(tail) =
-                    self.stop
-                        .estimate(&self.model, Goal::Stop, self.work(1) && !switched)
-                {
-                    if self.head + Vol::from_mm3(tail) >= end {
-                        self.model.command(0);
-                        self.want = None;
-                        self.phase = Phase::Print { stopping: true };
-                        self.stop.reset();
-                    }
+                let due = self
+                    .stop
+                    .answer(&self.model, Goal::Stop)
+                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
+                if due {
+                    self.model.command(0);
+                    self.want = None;
+                    self.phase = Phase::Print { stopping: true };
+                    self.stop.reset();
+                } else if self.work(1) && !switched {
+                    self.stop.work(&self.model);
                 }
             }
         }
@@ -1085,10 +1095,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs
     /// this cycle. The kinds take turns; a cycle whose flow step took its slow path
-    /// (a slug start crossing the exit or landing) does none, nor does the stop after a
-    /// switch was commanded in the same cycle, so that the dearest steps and a prediction
-    /// unit never share a cycle. These come a few times per material change, so the
-    /// predictions lose a unit or two per switch.
+    /// (a slug start crossing the exit or landing) does none, nor does one that
+    /// commanded a switch or a stop, so that the dearest steps and a prediction unit never
+    /// share a cycle. These come a few times per material change, so the predictions lose
+    /// a unit or two per switch.
     fn work(&self, parity: u64) -> bool {
         self.cycle % 2 == parity && !self.model.crossed()
     }

@@ -76,6 +76,9 @@ pub trait Real:
     fn from_i64(x: i64) -> Self;
     /// From a small unsigned integer (one instruction on an FPU).
     fn from_u32(x: u32) -> Self;
+    /// Towards zero into a u32, saturating (NaN gives 0): one instruction on an FPU. For
+    /// `self >= 0` it is the floor.
+    fn trunc_u32(self) -> u32;
     /// The smaller of two (the other if one is NaN).
     #[inline]
     fn min(self, o: Self) -> Self {
@@ -204,6 +207,10 @@ impl Real for f32 {
     fn from_u32(x: u32) -> Self {
         x as f32
     }
+    #[inline]
+    fn trunc_u32(self) -> u32 {
+        self as u32
+    }
 }
 
 impl Real for f64 {
@@ -293,6 +300,10 @@ impl Real for f64 {
     fn from_u32(x: u32) -> Self {
         x as f64
     }
+    #[inline]
+    fn trunc_u32(self) -> u32 {
+        self as u32
+    }
 }
 
 #[cfg(test)]
@@ -312,6 +323,14 @@ mod tests {
             3.0e9,
             -3.0e9,
             1.7e18,
+            -1.7e18,
+            2.1e9,
+            -2.0e9,
+            9.2e18,
+            -9.3e18,
+            1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
             f32::NAN,
         ] {
             let want = if x.is_nan() {

@@ -99,7 +99,11 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         let mut rates = [R::ZERO; N];
         for (i, inlet) in machine.inlets.iter().enumerate() {
             if let Some(sy) = inlet.syringe.filter(|_| machine.syringes) {
-                let _ = responses.push(Response::new(sy.lag_k.to_f64(), sy.lag_n.to_f64()));
+                let _ = responses.push(Response::new(
+                    sy.lag_k.to_f64(),
+                    sy.lag_n.to_f64(),
+                    machine.period_us as f64 * 1e-6,
+                ));
                 let _ = plungers.push(Plunger::default());
                 rates[i] = sy.rate;
             }
@@ -186,7 +190,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             .zip(self.responses.iter())
             .enumerate()
         {
-            let q = pl.flow_mid(k, dt, resp);
+            let q = pl.flow_mid(k, resp);
             total += q;
             if q > R::ZERO && best.is_none_or(|(_, b)| q > b) {
                 best = Some((i, q));
@@ -262,14 +266,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             let [last, before] = self.solved;
             let trend = last + (last - before);
             let guess = if trend > R::ZERO { trend } else { last };
-            let q = solve::flow_within(
-                &self.laws,
-                &vin,
-                impulse * self.inv_dt,
-                guess,
-                R::of(solve::CYCLE_TOLERANCE),
-                solve::CYCLE_ITERATIONS,
-            );
+            let q = solve::flow_step(&self.laws, &vin, impulse * self.inv_dt, guess);
             self.solved = [q, last];
             let dv = Vol::from_mm3(q * dt);
             if dv.0 > 0 {
@@ -353,7 +350,12 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// Per-material volume in the channel, mm^3.
     pub fn vin(&self) -> [R; N] {
         let mut out = [R::ZERO; N];
-        for (o, v) in out.iter_mut().zip(self.channel.in_channel().iter()) {
+        // The machine's inlets only; the rest of the capacity holds nothing.
+        let inlets = self.laws.len();
+        for (o, v) in out[..inlets]
+            .iter_mut()
+            .zip(&self.channel.in_channel()[..inlets])
+        {
             *o = v.mm3();
         }
         out
@@ -363,12 +365,12 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// syringes' outflow), mm^3/s.
     pub fn flow_now(&self) -> R {
         if !self.plungers.is_empty() {
-            let at = R::from_u32(self.next.min(u32::MAX as u64) as u32);
+            let at = self.next;
             return self
                 .plungers
                 .iter()
                 .zip(self.responses.iter())
-                .map(|(p, r)| p.flow_at(at, self.dt, r))
+                .map(|(p, r)| p.flow_at(at, r))
                 .fold(R::ZERO, |a, b| a + b);
         }
         let p = self.junction_pa();

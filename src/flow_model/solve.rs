@@ -24,26 +24,68 @@ pub fn flow<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, guess: R) -> R {
     flow_within(laws, vin, p, guess, tolerance::<R>(), MAX_ITERATIONS)
 }
 
-/// Newton steps per control cycle for the executor's per-cycle solve. From the flow
-/// extrapolated through the last two cycles' answers, one step nearly always reaches the
-/// tolerance (with three allowed, 1 286 of the power-law bench job's 147 845 solves took
-/// a second). Where it cannot, after a jump in pressure or the first cycles of a flow
-/// starting from rest, the error still squares from one cycle to the next (at most half
-/// its square: a 50 % jump leaves 12 %, 0.8 %, 3e-5), and
-/// those few cycles move the head by well under a micrometre more or less than the paste;
-/// the whole-job tests hold the bead section to 1 % through every switch and start.
-pub const CYCLE_ITERATIONS: u32 = 1;
-/// Newton steps per look-ahead chunk. The chunk starts from the last chunk's flow scaled
-/// by the pressure ratio as the feeding paste's power law scales it, exact for content of
-/// one paste; for mixed content one step leaves about (1 - n)/2 of the square of that
+/// One Newton step of the flow solve from `q`: the form the control cycle and the
+/// look-ahead use, whose starts are close enough to the root that one step does.
+///
+/// The per-cycle solve starts on the line through the last two cycles' answers; from
+/// there one step nearly always reaches 1e-5 relative (with three steps allowed, 1 286 of
+/// the power-law bench job's 147 845 solves took a second). Where it cannot, after a jump
+/// in pressure or the first cycles of a flow starting from rest, the error still squares
+/// from one cycle to the next (at most half its square: a 50 % jump leaves 12 %, 0.8 %,
+/// 3e-5), and those few cycles move the head by well under a micrometre more or less
+/// than the paste; the whole-job tests hold the bead section to 1 % through every switch
+/// and start. The look-ahead starts each chunk from the last chunk's flow scaled by the
+/// pressure ratio as the feeding paste's power law scales it, exact for content of one
+/// paste; for mixed content one step leaves about (1 - n)/2 of the square of that
 /// guess's error, a few parts in a thousand of the chunk's volume.
-pub const PREDICT_ITERATIONS: u32 = 1;
-/// Relative tolerance of the per-cycle solve: far below the 1 % the bead section is held
-/// to, and above f32's rounding noise.
-pub const CYCLE_TOLERANCE: f64 = 1e-5;
-/// Relative tolerance of the look-ahead's solves, whose answers steer valve timing to
-/// within a few percent of a lead volume.
-pub const PREDICT_TOLERANCE: f64 = 1e-3;
+///
+/// The residual is increasing and concave, so a step never lands above the root; one
+/// that lands at or below zero (a start far above the root) is replaced by half the
+/// start, as the bracketed solve would. Zero pressure, or pressure within the yield
+/// terms, gives zero; a start of zero or less (nothing flowed yet) starts cold. This is
+/// `flow_within` with one iteration, without its bracket bookkeeping.
+pub fn flow_step<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, q: R) -> R {
+    if !(q > R::ZERO && q.is_finite()) {
+        return flow_within(laws, vin, p, q, tolerance::<R>(), 1);
+    }
+    let log_q = q.log2_fast();
+    let mut terms = R::ZERO;
+    let mut yield_sum = R::ZERO;
+    let mut dg_q = R::ZERO;
+    let mut any = false;
+    for (law, &v) in laws.iter().zip(vin) {
+        if v > R::ZERO {
+            any = true;
+            yield_sum += v * law.b;
+            let t = if law.linear {
+                v * law.a * q
+            } else {
+                v * law.a * (law.n * log_q).exp2_fast()
+            };
+            terms += t;
+            dg_q += law.n * t;
+        }
+    }
+    // Below the yield terms (or with an empty channel) nothing flows.
+    let target = p - yield_sum;
+    if !any || target <= R::ZERO {
+        return R::ZERO;
+    }
+    let g = terms - target;
+    // dg = dg_q / q: the step is q (1 - g / dg_q).
+    let newton = if dg_q > R::ZERO {
+        q - g * q / dg_q
+    } else {
+        q * R::TWO
+    };
+    if newton > R::ZERO && newton.is_finite() {
+        newton
+    } else if g > R::ZERO {
+        q * R::HALF
+    } else {
+        q * R::TWO
+    }
+}
 
 /// `flow` with a given relative tolerance and iteration bound. `tol` bounds the relative
 /// error of the answer: a Newton step `s` from `q` leaves an error of about
@@ -228,7 +270,9 @@ mod tests {
                 let root = flow(&l, &v, p, 0.0);
                 for off in [-0.2, -0.05, -3e-3, 1e-3, 0.04, 0.3] {
                     let q = root * (1.0 + off);
-                    let one = flow_within(&l, &v, p, q, 1e-30, 1);
+                    let one = flow_step(&l, &v, p, q);
+                    let within = flow_within(&l, &v, p, q, 1e-30, 1);
+                    assert!((one - within).abs() <= 1e-12 * root, "{one} {within}");
                     let s = (one - q) / one;
                     let err = ((one - root) / root).abs();
                     assert!(

@@ -14,9 +14,19 @@ pub const RESPONSE_POINTS: usize = 256;
 pub const EVENTS: usize = 6;
 
 /// `F` tabulated on `[0, t_end]` (1 beyond), and `H(t) = integral of (1 - F) from t on`,
-/// the volume per unit rate still to come out after a change `t` seconds ago.
+/// the volume per unit rate still to come out after a change `t` seconds ago. The table
+/// step is a whole number of control cycles, so the per-cycle path finds its entry and
+/// the fraction within it from the integer cycle count (one hardware division on the
+/// M4): no float rounding, and exact however long a job runs.
 #[derive(Clone, Debug)]
 pub struct Response<R> {
+    /// Table step in half cycles.
+    half_steps: u32,
+    /// Half cycles after a change from which F is 1.
+    end_half: u64,
+    /// 1 / (table step in half cycles).
+    inv_half_steps: R,
+    /// 1 / (table step in seconds), for `f(t)` and `h(t)` at any time.
     inv_step: R,
     t_end: R,
     f: [R; RESPONSE_POINTS],
@@ -24,14 +34,19 @@ pub struct Response<R> {
 }
 
 impl<R: Real> Response<R> {
-    /// The table for Weibull `k`, `n`.
-    pub fn new(k: f64, n: f64) -> Self {
-        let t_end = Syringe::settle_time(k, n);
-        let step = t_end / (RESPONSE_POINTS - 1) as f64;
+    /// The table for Weibull `k`, `n` and control cycles of `dt` seconds: the smallest
+    /// whole number of cycles a step whose 255 steps reach the settling time.
+    pub fn new(k: f64, n: f64, dt: f64) -> Self {
+        let settle = Syringe::settle_time(k, n);
+        let cycles_per_step =
+            libm::ceil(settle / dt / (RESPONSE_POINTS - 1) as f64).clamp(1.0, 1e6) as u32;
+        let step = cycles_per_step as f64 * dt;
+        let t_end = step * (RESPONSE_POINTS - 1) as f64;
         let mut f = [R::ZERO; RESPONSE_POINTS];
         for (i, v) in f.iter_mut().enumerate() {
             *v = R::of(Syringe::response(k, n, i as f64 * step));
         }
+        f[RESPONSE_POINTS - 1] = R::ONE;
         // H by Simpson's rule on 64 sub-intervals per table step, from the end backwards.
         let mut h = [R::ZERO; RESPONSE_POINTS];
         let mut acc = 0.0f64;
@@ -47,7 +62,11 @@ impl<R: Real> Response<R> {
             acc += sum * hh / 3.0;
             h[i] = R::of(acc);
         }
+        let half_steps = 2 * cycles_per_step;
         Response {
+            half_steps,
+            end_half: half_steps as u64 * (RESPONSE_POINTS - 1) as u64,
+            inv_half_steps: R::of(1.0 / half_steps as f64),
             inv_step: R::of(1.0 / step),
             t_end: R::of(t_end),
             f,
@@ -57,42 +76,69 @@ impl<R: Real> Response<R> {
 
     /// F(t), linearly interpolated over 255 steps up to the settling time (error under
     /// 1e-3 of the rate where F bends most, at the start of the response).
-    #[inline]
     pub fn f(&self, t: R) -> R {
-        if t <= R::ZERO {
-            return R::ZERO;
-        }
-        if t >= self.t_end {
+        let x = (t * self.inv_step).max(R::ZERO);
+        if x >= R::from_u32(RESPONSE_POINTS as u32 - 1) {
             return R::ONE;
         }
-        let x = t * self.inv_step;
-        // floor(x) for x > 0: round(x - 1/2), ties away from zero.
-        let i = (x - R::HALF)
-            .round_i64()
-            .clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
-        let frac = x - R::from_u32(i as u32);
-        self.f[i] + (self.f[i + 1] - self.f[i]) * frac
+        let i = (x.trunc_u32() as usize).min(RESPONSE_POINTS - 2);
+        lerp(&self.f, i, x - R::from_u32(i as u32))
     }
 
     /// H(t), linearly interpolated; 0 beyond the table.
-    #[inline]
     pub fn h(&self, t: R) -> R {
-        if t >= self.t_end {
+        let x = (t * self.inv_step).max(R::ZERO);
+        if x >= R::from_u32(RESPONSE_POINTS as u32 - 1) {
             return R::ZERO;
         }
-        let t = t.max(R::ZERO);
-        let x = t * self.inv_step;
-        let i = (x - R::HALF)
-            .round_i64()
-            .clamp(0, RESPONSE_POINTS as i64 - 2) as usize;
-        let frac = x - R::from_u32(i as u32);
-        self.h[i] + (self.h[i + 1] - self.h[i]) * frac
+        let i = (x.trunc_u32() as usize).min(RESPONSE_POINTS - 2);
+        lerp(&self.h, i, x - R::from_u32(i as u32))
     }
 
-    /// Seconds after which F is 1.
+    /// Table entry and fraction `half_cycles` half cycles after a change; `None` once
+    /// settled (F = 1, H = 0).
+    #[inline]
+    fn at_half(&self, half_cycles: u64) -> Option<(usize, R)> {
+        if half_cycles >= self.end_half {
+            return None;
+        }
+        // Below end_half, which fits u32: a 32-bit division (one instruction).
+        let p = half_cycles as u32;
+        let i = p / self.half_steps;
+        let rem = p - i * self.half_steps;
+        Some((i as usize, R::from_u32(rem) * self.inv_half_steps))
+    }
+
+    /// F `half_cycles` half cycles after a change.
+    #[inline]
+    pub fn f_half(&self, half_cycles: u64) -> R {
+        match self.at_half(half_cycles) {
+            Some((i, frac)) => lerp(&self.f, i, frac),
+            None => R::ONE,
+        }
+    }
+
+    /// H `half_cycles` half cycles after a change.
+    #[inline]
+    pub fn h_half(&self, half_cycles: u64) -> R {
+        match self.at_half(half_cycles) {
+            Some((i, frac)) => lerp(&self.h, i, frac),
+            None => R::ZERO,
+        }
+    }
+
+    /// Seconds after which F is 1 (the table's end).
     pub fn t_end(&self) -> R {
         self.t_end
     }
+}
+
+/// Linear interpolation of `table` between entries `i` and `i + 1` (i < 255).
+#[inline]
+fn lerp<R: Real>(table: &[R; RESPONSE_POINTS], i: usize, frac: R) -> R {
+    let i = i.min(RESPONSE_POINTS - 2);
+    let (a, b) = (table[i], table[i + 1]);
+    a + (b - a) * frac
 }
 
 /// A syringe's rate changes: `(cycle at whose start it acts, +-rate)`, oldest first, and
@@ -138,50 +184,61 @@ impl<R: Real> Plunger<R> {
         self.len += 1;
     }
 
-    /// Outflow at the middle of cycle `k` (mm^3/s), folding settled changes.
-    #[inline]
-    pub fn flow_mid(&mut self, k: u64, dt: R, resp: &Response<R>) -> R {
+    /// Becomes `src`, copying only its live changes (cheaper than the whole struct).
+    pub fn copy_from(&mut self, src: &Plunger<R>) {
+        let n = (src.len as usize).min(EVENTS);
+        self.events[..n].copy_from_slice(&src.events[..n]);
+        self.base = src.base;
+        self.len = n as u8;
+        self.running = src.running;
+    }
+
+    /// Outflow at the middle of cycle `k` (mm^3/s), folding settled changes. Not inlined:
+    /// on its own its loop keeps its state in registers.
+    #[inline(never)]
+    pub fn flow_mid(&mut self, k: u64, resp: &Response<R>) -> R {
         let mut q = self.base;
         let mut keep = 0usize;
         for e in 0..self.len as usize {
             let (at, dr) = self.events[e];
-            if k < at {
-                self.events[keep] = (at, dr);
-                keep += 1;
-                continue;
+            if k >= at {
+                match resp.at_half(2 * (k - at) + 1) {
+                    Some((i, frac)) => q += dr * lerp(&resp.f, i, frac),
+                    None => {
+                        self.base += dr;
+                        q += dr;
+                        continue;
+                    }
+                }
             }
-            let t = (R::from_u32((k - at).min(u32::MAX as u64) as u32) + R::HALF) * dt;
-            if t >= resp.t_end {
-                self.base += dr;
-                q += dr;
-            } else {
-                q += dr * resp.f(t);
+            if keep != e {
                 self.events[keep] = (at, dr);
-                keep += 1;
             }
+            keep += 1;
         }
         self.len = keep as u8;
         q.max(R::ZERO)
     }
 
-    /// Volume still to come out (mm^3) from cycle `at_cycle` on, once the plunger has
-    /// stopped for good: every change's `H` since it happened, the settled part cancelling.
-    pub fn remaining(&self, at_cycle: R, dt: R, resp: &Response<R>) -> R {
+    /// Volume still to come out (mm^3) from the start of cycle `k` on, once the plunger
+    /// has stopped for good: every change's `H` since it happened, the settled part
+    /// cancelling.
+    pub fn remaining(&self, k: u64, resp: &Response<R>) -> R {
         let mut v = R::ZERO;
         for &(at, dr) in &self.events[..self.len as usize] {
-            let t = (at_cycle - R::from_u32(at.min(u32::MAX as u64) as u32)) * dt;
-            v -= dr * resp.h(t);
+            v -= dr * resp.h_half(2 * k.saturating_sub(at));
         }
         v.max(R::ZERO)
     }
 
-    /// Outflow at time `t_cycles` cycles after the start of cycle 0 (no folding).
+    /// Outflow at the start of cycle `k` (no folding).
     #[inline]
-    pub fn flow_at(&self, at_cycle: R, dt: R, resp: &Response<R>) -> R {
+    pub fn flow_at(&self, k: u64, resp: &Response<R>) -> R {
         let mut q = self.base;
         for &(at, dr) in &self.events[..self.len as usize] {
-            let t = (at_cycle - R::from_u32(at.min(u32::MAX as u64) as u32)) * dt;
-            q += dr * resp.f(t);
+            if k > at {
+                q += dr * resp.f_half(2 * (k - at));
+            }
         }
         q.max(R::ZERO)
     }
@@ -194,7 +251,7 @@ mod tests {
     #[test]
     fn table_follows_the_weibull_curve() {
         let (k, n) = (400.0, 1.5);
-        let r: Response<f32> = Response::new(k, n);
+        let r: Response<f32> = Response::new(k, n, 1e-4);
         let mut worst = 0.0f64;
         for i in 0..2000 {
             let t = i as f64 * 1e-4;
@@ -207,7 +264,7 @@ mod tests {
     #[test]
     fn start_then_stop_delivers_the_plunger_volume() {
         // Plunger runs 0.2 s at 5 mm^3/s: whatever the lag, 1 mm^3 comes out in the end.
-        let r: Response<f64> = Response::new(400.0, 1.5);
+        let r: Response<f64> = Response::new(400.0, 1.5, 1e-4);
         let mut p = Plunger::default();
         let dt = 1e-4;
         p.command(true, 0, 5.0);
@@ -216,7 +273,7 @@ mod tests {
             if k == 2000 {
                 p.command(false, k, 5.0);
             }
-            v += p.flow_mid(k, dt, &r) * dt;
+            v += p.flow_mid(k, &r) * dt;
         }
         assert!((v - 1.0).abs() < 1e-3, "{v}");
         assert_eq!(p.len, 0);
@@ -226,10 +283,10 @@ mod tests {
         p.command(true, 0, 5.0);
         let mut before = 0.0;
         for k in 0..2000u64 {
-            before += p.flow_mid(k, dt, &r) * dt;
+            before += p.flow_mid(k, &r) * dt;
         }
         p.command(false, 2000, 5.0);
-        let predicted = p.remaining(2000.0, dt, &r);
+        let predicted = p.remaining(2000, &r);
         assert!(
             (before + predicted - 1.0).abs() < 2e-3,
             "{before} + {predicted}"
