@@ -258,6 +258,8 @@ struct Tracker<R, const N: usize> {
     running: bool,
     last: Option<(u64, R)>,
     prev: Option<(u64, R)>,
+    /// Change of the answer per cycle between the last two predictions (0 with one).
+    slope: R,
 }
 
 impl<R: Real, const N: usize> Tracker<R, N> {
@@ -268,6 +270,7 @@ impl<R: Real, const N: usize> Tracker<R, N> {
             running: false,
             last: None,
             prev: None,
+            slope: R::ZERO,
         }
     }
     /// Forgets everything; field by field, as moving the prediction is dearer than this.
@@ -276,6 +279,7 @@ impl<R: Real, const N: usize> Tracker<R, N> {
         self.running = false;
         self.last = None;
         self.prev = None;
+        self.slope = R::ZERO;
     }
     /// The current answer for `goal`: the last two predictions extrapolated to the
     /// present (a new goal forgets the old one's).
@@ -284,20 +288,13 @@ impl<R: Real, const N: usize> Tracker<R, N> {
             self.reset();
             self.goal = Some(goal);
         }
-        match (self.last, self.prev) {
-            (Some((t1, v1)), Some((t0, v0))) if t1 > t0 => {
-                // A lead changes because time passes; it cannot change faster than the
-                // flow itself, which bounds a slope taken across a jump in the state.
-                let cap = model.q() * model.dt();
-                let slope = ((v1 - v0) / R::from_u32(cycles32(t1 - t0)))
-                    .max(-cap)
-                    .min(cap);
-                let now = model.next_cycle();
-                Some((v1 + slope * R::from_u32(cycles32(now - t1))).max(R::ZERO))
-            }
-            (Some((_, v1)), _) => Some(v1),
-            _ => None,
-        }
+        let (t1, v1) = self.last?;
+        // A lead changes because time passes; it cannot change faster than the flow
+        // itself, which bounds a slope taken across a jump in the state.
+        let cap = model.q() * model.dt();
+        let slope = self.slope.max(-cap).min(cap);
+        let since = R::from_u32(cycles32(model.next_cycle() - t1));
+        Some((v1 + slope * since).max(R::ZERO))
     }
 
     /// One unit of work (a restart or half a chunk) on the goal of the last `answer`.
@@ -317,10 +314,17 @@ impl<R: Real, const N: usize> Tracker<R, N> {
                     Outcome::Volume(v) => {
                         self.prev = self.last;
                         self.last = Some((at, v));
+                        // The slope between the last two answers, worked out once here
+                        // rather than in every cycle's `answer`.
+                        self.slope = match self.prev {
+                            Some((t0, v0)) if at > t0 => (v - v0) / R::from_u32(cycles32(at - t0)),
+                            _ => R::ZERO,
+                        };
                     }
                     Outcome::Never => {
                         self.prev = None;
                         self.last = None;
+                        self.slope = R::ZERO;
                     }
                 }
             }
@@ -354,6 +358,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     switch: Tracker<R, N>,
     stop: Tracker<R, N>,
     window: Vol,
+    /// Cycles a bead's end may take to settle (`settle_limit`), worked out once.
+    settle_limit: u64,
     /// Largest shortfall of a bead's end (paste ran out before it), as volume.
     short: Vol,
     dt: R,
@@ -385,7 +391,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             [0; 3],
         );
         let window = lead_window(&machine);
+        let settle_limit = settle_limit(&machine);
         Executor {
+            settle_limit,
             model,
             steps,
             plan: Deque::new(),
@@ -815,7 +823,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                         self.phase = Phase::Idle;
                         continue;
                     }
-                    if cycles > self.settle_limit() {
+                    if cycles > self.settle_limit {
                         return Err(Fault::FlowDidNotStop);
                     }
                     self.phase = Phase::Settle { cycles: cycles + 1 };
@@ -874,15 +882,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.decide_valves()?;
         }
         Ok(dv)
-    }
-
-    fn settle_limit(&self) -> u64 {
-        // Ten times the slowest line's dead time plus eight time constants, at least 1 s.
-        let mut s = R::ONE;
-        for i in self.machine.inlets.iter() {
-            s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
-        }
-        (s / self.machine.dt()).round_i64().max(1) as u64
     }
 
     /// Takes the next plan item when idle. Returns true if a new phase began that should
@@ -1031,7 +1030,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         let entry = self.head + self.machine.v_transit();
         // Of several boundaries already behind the cursor only the last still matters.
-        while self.boundaries.iter().nth(1).is_some_and(|b| b.0 <= entry) {
+        // They are in plan order, so while the first is ahead none is behind (the usual
+        // case, checked without walking the queue).
+        while self.boundaries.front().is_some_and(|b| b.0 <= entry)
+            && self.boundaries.iter().nth(1).is_some_and(|b| b.0 <= entry)
+        {
             self.boundaries.pop_front();
         }
         if let Some(known) = self.known_to {
@@ -1269,6 +1272,16 @@ impl<R: Real, const N: usize> Executor<R, N> {
 }
 
 /// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
+/// Cycles a bead's end may take to settle before the flow counts as not stopping.
+fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
+    // Ten times the slowest line's dead time plus eight time constants, at least 1 s.
+    let mut s = R::ONE;
+    for i in machine.inlets.iter() {
+        s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
+    }
+    (s / machine.dt()).round_i64().max(1) as u64
+}
+
 fn cycles32(c: u64) -> u32 {
     c.min(u32::MAX as u64) as u32
 }

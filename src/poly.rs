@@ -37,14 +37,12 @@ fn log2(x: f32) -> f32 {
         m *= 0.5;
         e += 1.0;
     }
-    // ln m = 2 atanh(t), t = (m - 1)/(m + 1), |t| <= 0.1716: series to t^11.
+    // ln m = 2 atanh(t), t = (m - 1)/(m + 1), |t| <= 0.1716: series to t^9 (the next
+    // term, 2 t^11 / 11, is under 1e-9).
     let t = (m - 1.0) / (m + 1.0);
     let t2 = t * t;
-    let ln_m = 2.0
-        * t
-        * (1.0
-            + t2 * (1.0 / 3.0
-                + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0 + t2 * (1.0 / 11.0))))));
+    let ln_m =
+        2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0)))));
     e + ln_m * core::f32::consts::LOG2_E
 }
 
@@ -57,7 +55,7 @@ pub fn log2_any(x: f32) -> f32 {
     }
 }
 
-/// 2^y for y in f32's normal range, relative error under 4e-7.
+/// 2^y for y in f32's normal range, relative error under 5e-7.
 pub fn exp2(y: f32) -> f32 {
     if y < -126.0 {
         return 0.0;
@@ -73,13 +71,12 @@ pub fn exp2(y: f32) -> f32 {
     };
     let f = y - n as f32;
     let z = f * core::f32::consts::LN_2;
-    // e^z for |z| <= 0.347: series to z^7, err < 0.347^8/8! = 5e-9.
+    // e^z for |z| <= 0.347: series to z^6, err < 0.347^7/7! = 1.2e-7 relative (f32's
+    // own rounding is 6e-8).
     let p = 1.0
         + z * (1.0
             + z * (0.5
-                + z * (1.0 / 6.0
-                    + z * (1.0 / 24.0
-                        + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (1.0 / 5040.0)))))));
+                + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0))))));
     p * f32::from_bits(((n + 127) as u32) << 23)
 }
 

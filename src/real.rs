@@ -79,6 +79,9 @@ pub trait Real:
     /// Towards zero into a u32, saturating (NaN gives 0): one instruction on an FPU. For
     /// `self >= 0` it is the floor.
     fn trunc_u32(self) -> u32;
+    /// Nearest i32 (ties away from zero), saturating; NaN gives 0. For values known to
+    /// fit (step positions), without `round_i64`'s wide path.
+    fn round_i32(self) -> i32;
     /// The smaller of two (the other if one is NaN).
     #[inline]
     fn min(self, o: Self) -> Self {
@@ -211,6 +214,19 @@ impl Real for f32 {
     fn trunc_u32(self) -> u32 {
         self as u32
     }
+    #[inline]
+    fn round_i32(self) -> i32 {
+        let t = self as i32;
+        let r = self - t as f32;
+        // Beyond 2^24 f32 holds whole numbers only, so r is 0 there (and at saturation).
+        if r >= 0.5 {
+            t.saturating_add(1)
+        } else if r <= -0.5 {
+            t.saturating_sub(1)
+        } else {
+            t
+        }
+    }
 }
 
 impl Real for f64 {
@@ -304,6 +320,10 @@ impl Real for f64 {
     fn trunc_u32(self) -> u32 {
         self as u32
     }
+    #[inline]
+    fn round_i32(self) -> i32 {
+        libm::round(self) as i32
+    }
 }
 
 #[cfg(test)]
@@ -339,6 +359,12 @@ mod tests {
                 libm::roundf(x) as i64
             };
             assert_eq!(x.round_i64(), want, "{x}");
+            let want32 = if x.is_nan() {
+                0
+            } else {
+                libm::roundf(x) as i32
+            };
+            assert_eq!(x.round_i32(), want32, "{x}");
         }
         let mut v = 1i64;
         for _ in 0..62 {

@@ -23,6 +23,8 @@ pub struct StepGen<R> {
     steps_per_mm: [R; 3],
     max_per_cycle: u32,
     position: [i64; 3],
+    /// The Z position (mm) the Z steps were last computed for (NaN before any).
+    last_z: R,
 }
 
 impl<R: Real> StepGen<R> {
@@ -32,6 +34,7 @@ impl<R: Real> StepGen<R> {
             steps_per_mm,
             max_per_cycle,
             position,
+            last_z: R::of(f64::NAN),
         }
     }
 
@@ -91,10 +94,18 @@ impl<R: Real> StepGen<R> {
         out: &mut impl Outputs,
     ) -> Result<(), StepRateExceeded> {
         let max = self.max_per_cycle.saturating_mul(cycles.max(1)) as u64;
+        // Step positions fit i32 (2^31 microsteps is kilometres), so the narrow rounding;
+        // a planned position beyond it saturates into a step-rate fault. Z stands still
+        // between layers: skip its conversion while its position does.
+        let dz = if mm[2] == self.last_z {
+            0
+        } else {
+            (mm[2] * self.steps_per_mm[2]).round_i32() as i64 - self.position[2]
+        };
         let d = [
-            (mm[0] * self.steps_per_mm[0]).round_i64() - self.position[0],
-            (mm[1] * self.steps_per_mm[1]).round_i64() - self.position[1],
-            (mm[2] * self.steps_per_mm[2]).round_i64() - self.position[2],
+            (mm[0] * self.steps_per_mm[0]).round_i32() as i64 - self.position[0],
+            (mm[1] * self.steps_per_mm[1]).round_i32() as i64 - self.position[1],
+            dz,
         ];
         for (a, &da) in d.iter().enumerate() {
             if da.unsigned_abs() > max {
@@ -111,6 +122,7 @@ impl<R: Real> StepGen<R> {
                 self.position[a] += da;
             }
         }
+        self.last_z = mm[2];
         Ok(())
     }
 }

@@ -34,6 +34,12 @@ pub struct Channel<const N: usize> {
     exit_idx: usize,
     /// The last `advance` crossed a slug start at the exit or the plate (its slow path).
     crossed: bool,
+    /// Entered volume up to which no slug start reaches the exit or the plate: below it
+    /// `advance` only moves volume (kept by `refresh` whenever the slugs change).
+    clear_until: Vol,
+    /// Materials entering and at the exit (cached with `clear_until`).
+    newest_m: u8,
+    exit_m: u8,
 }
 
 /// The channel could not take another slug.
@@ -53,7 +59,7 @@ impl<const N: usize> Channel<N> {
         if let Some(v) = in_channel.get_mut(material as usize) {
             *v = v_channel;
         }
-        Channel {
+        let mut c = Channel {
             slugs,
             entered: v_transit,
             v_channel,
@@ -61,7 +67,25 @@ impl<const N: usize> Channel<N> {
             in_channel,
             exit_idx: 0,
             crossed: false,
-        }
+            clear_until: Vol::ZERO,
+            newest_m: material,
+            exit_m: material,
+        };
+        c.refresh();
+        c
+    }
+
+    /// Works out the fast path's limits after the slugs changed.
+    fn refresh(&mut self) {
+        let exit_at = self
+            .slug(self.exit_idx + 1)
+            .map_or(Vol(i64::MAX), |s| s.start + self.v_channel);
+        let land_at = self
+            .slug(1)
+            .map_or(Vol(i64::MAX), |s| s.start + self.v_transit);
+        self.clear_until = exit_at.min(land_at);
+        self.newest_m = self.newest();
+        self.exit_m = self.at_exit();
     }
 
     /// The i-th slug from the plate end, in O(1).
@@ -145,7 +169,9 @@ impl<const N: usize> Channel<N> {
                 material,
                 start: self.entered,
             })
-            .map_err(|_| ChannelFull)
+            .map_err(|_| ChannelFull)?;
+        self.refresh();
+        Ok(())
     }
 
     /// Moves `dv` of the newest slug's material in at the junction; as much leaves the
@@ -156,19 +182,10 @@ impl<const N: usize> Channel<N> {
         if dv.0 <= 0 {
             return 0;
         }
-        // Fast path, nearly every cycle: no slug start crossed at the exit or the plate.
-        let exit = self.entered - self.v_channel;
-        let land_to = self.entered + dv - self.v_transit;
-        let exit_clear = self
-            .slug(self.exit_idx + 1)
-            .is_none_or(|s| s.start > exit + dv);
-        let land_clear = self.slug(1).is_none_or(|s| s.start > land_to);
-        if exit_clear && land_clear {
-            let newest = self.newest() as usize;
-            let here = self
-                .slug(self.exit_idx)
-                .map(|s| s.material as usize)
-                .unwrap_or(0);
+        // Fast path, nearly every cycle: no slug start crosses the exit (its start stays
+        // above `entered - v_channel`) or lands (above `entered - v_transit`).
+        if self.entered + dv < self.clear_until {
+            let (newest, here) = (self.newest_m as usize, self.exit_m as usize);
             if newest != here {
                 if let Some(v) = self.in_channel.get_mut(newest) {
                     *v += dv;
@@ -223,6 +240,7 @@ impl<const N: usize> Channel<N> {
                 break;
             }
         }
+        self.refresh();
         changes
     }
 }

@@ -160,7 +160,10 @@ pub struct Prediction<R, const N: usize> {
     start: u64,
     k: u64,
     /// A chunk whose lines are integrated and whose volume is still to do.
-    staged: Option<Stage<R>>,
+    staged: Stage<R>,
+    /// `staged` holds a chunk whose volume half is still to do (a flag beside a plain
+    /// field: taking an `Option` of it copies the whole stage on the M4).
+    is_staged: bool,
     vol: R,
     q: R,
     /// Mean junction pressure that drove `q`: the next chunk's solve starts from `q`
@@ -199,7 +202,18 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             exit_pos: R::ZERO,
             start: 0,
             k: 0,
-            staged: None,
+            staged: Stage {
+                j: 0,
+                span: R::ZERO,
+                best: None,
+                start_margin: R::ZERO,
+                end_margin: R::ZERO,
+                lead_positive: false,
+                settled: false,
+                any_open: false,
+                p_max: R::ZERO,
+            },
+            is_staged: false,
             vol: R::ZERO,
             q: R::ZERO,
             p_last: R::ZERO,
@@ -225,7 +239,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.start = next;
         self.k = next;
         self.vol = R::ZERO;
-        self.staged = None;
+        self.is_staged = false;
         self.syringe_stage = 0;
         self.n_plungers = model.plungers().len().min(N);
         if self.n_plungers > 0 {
@@ -298,9 +312,11 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             return self.advance_syringes(model, budget);
         }
         for _ in 0..budget {
-            let done = match self.staged.take() {
-                None => self.chunk_lines(model),
-                Some(stage) => self.chunk_flow(model, stage),
+            let done = if self.is_staged {
+                self.is_staged = false;
+                self.chunk_flow(model)
+            } else {
+                self.chunk_lines(model)
             };
             if done.is_some() {
                 return done;
@@ -395,7 +411,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 best = Some((i, imp));
             }
         }
-        self.staged = Some(Stage {
+        self.is_staged = true;
+        self.staged = Stage {
             j: j as u32,
             span,
             best,
@@ -405,23 +422,27 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             settled,
             any_open,
             p_max,
-        });
+        };
         None
     }
 
     /// Second half of a chunk: the volume through the channel, the switch crossing, the
     /// channel copy and the stop's end.
-    fn chunk_flow(&mut self, model: &FlowModel<R, N>, st: Stage<R>) -> Option<Outcome<R>> {
+    fn chunk_flow(&mut self, model: &FlowModel<R, N>) -> Option<Outcome<R>> {
+        let st = &self.staged;
+        let (j, span, best) = (st.j, st.span, st.best);
         let params = model.params();
         let switch = matches!(self.goal, Goal::Switch(_));
-        let dv = match st.best {
-            Some((f, imp)) => self.chunk_volume(model, f, imp, st.span),
+        let crossed = switch && st.end_margin <= R::ZERO && st.lead_positive && st.settled;
+        let (m0, m1) = (st.start_margin, st.end_margin);
+        let ended = !switch && !st.any_open && st.p_max <= self.p_scale * R::of(0.05);
+        let dv = match best {
+            Some((f, imp)) => self.chunk_volume(model, f, imp, span),
             None => R::ZERO,
         };
-        self.k += st.j as u64;
-        if switch && st.end_margin <= R::ZERO && st.lead_positive && st.settled {
+        self.k += j as u64;
+        if crossed {
             // Crossed inside the chunk: interpolate the pressure difference.
-            let (m0, m1) = (st.start_margin, st.end_margin);
             let f = if m0 > m1 {
                 (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
             } else {
@@ -429,17 +450,17 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             };
             return Some(Outcome::Volume(self.vol + f * dv));
         }
-        if let Some((f, imp)) = st.best {
+        if let Some((f, imp)) = best {
             self.take(f as u8, dv);
-            self.p_last = imp / st.span;
+            self.p_last = imp / span;
         }
-        self.q = dv / st.span;
+        self.q = dv / span;
         self.vol += dv;
-        if !switch && !st.any_open && st.p_max <= self.p_scale * R::of(0.05) {
+        if ended {
             // What is left decays with the line: p ~ e^(-t/tau) gives Q ~ e^(-t/(n tau))
             // through a power-law channel, so about q n tau more.
-            let tail = match st.best {
-                Some((f, _)) => dv / st.span * params[f].tau_decay * model.laws()[f].n,
+            let tail = match best {
+                Some((f, _)) => dv / span * params[f].tau_decay * model.laws()[f].n,
                 None => R::ZERO,
             };
             return Some(Outcome::Volume(self.vol + tail));
@@ -544,7 +565,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             // which the Newton step then corrects for mixed content and yield.
             let p = imp / span;
             let guess = if self.p_last > R::ZERO && self.q > R::ZERO {
-                self.q * (p / self.p_last).pow_fast(R::ONE / laws[feeding].n)
+                // ratio^(1/n) as exp2(log2(ratio) / n): the ratio is positive here.
+                self.q * ((p / self.p_last).log2_fast() / laws[feeding].n).exp2_fast()
             } else {
                 self.q
             };
