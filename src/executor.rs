@@ -713,7 +713,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
             for (i, inlet) in self.machine.inlets.iter().enumerate() {
                 let Some(sy) = inlet.syringe else { continue };
-                let target = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i64();
+                // Step counts fit i32 (2^31 steps is a thousand litres); beyond, the
+                // saturated target becomes a step-rate fault.
+                let target = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i32() as i64;
                 let d = target - self.plunger_steps[i];
                 if d.unsigned_abs() > max {
                     let f = Fault::StepRate {

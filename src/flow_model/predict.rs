@@ -172,13 +172,16 @@ pub struct Prediction<R, const N: usize> {
     p_scale: R,
     /// Syringe machines: the plungers as they would be after the hypothetical command.
     plungers: [Plunger<R>; N],
-    /// Syringe outflows at the chunk's start, middle and end, and which of them the next
-    /// unit of work evaluates (0, 1, 2).
+    /// Syringe outflows at the chunk's start, middle and end, and which the next unit of
+    /// work evaluates (point * syringes + syringe).
     q_start: [R; N],
     q_mid: [R; N],
     q_end: [R; N],
     syringe_stage: u8,
     n_plungers: usize,
+    /// Valves of the hypothetical command, and how many plungers are copied so far.
+    syringe_mask: u32,
+    copied: u8,
 }
 
 impl<R: Real, const N: usize> Default for Prediction<R, N> {
@@ -224,6 +227,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             q_mid: [R::ZERO; N],
             q_end: [R::ZERO; N],
             syringe_stage: 0,
+            syringe_mask: 0,
+            copied: 0,
         }
     }
 
@@ -243,7 +248,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.syringe_stage = 0;
         self.n_plungers = model.plungers().len().min(N);
         if self.n_plungers > 0 {
-            self.restart_syringes(model, mask, next);
+            self.restart_syringes(model, mask);
             return;
         }
         let mut p_scale = R::ZERO;
@@ -279,14 +284,33 @@ impl<R: Real, const N: usize> Prediction<R, N> {
     /// only. Kept out of line, as is `advance_syringes`, so that the pneumatic path the
     /// control cycle inlines stays small.
     #[inline(never)]
-    fn restart_syringes(&mut self, model: &FlowModel<R, N>, mask: u32, next: u64) {
+    fn restart_syringes(&mut self, model: &FlowModel<R, N>, mask: u32) {
         self.n_lines = 0;
         self.p_scale = R::ZERO;
-        for (i, (dst, src)) in self.plungers.iter_mut().zip(model.plungers()).enumerate() {
-            dst.copy_from(src);
-            dst.command(mask & (1 << i) != 0, next, model.rates()[i]);
-            self.p_scale = self.p_scale.max(model.rates()[i]);
+        for &r in model.rates().iter() {
+            self.p_scale = self.p_scale.max(r);
         }
+        self.syringe_mask = mask;
+        self.copied = 0;
+        self.copy_plunger(model);
+    }
+
+    /// Copies the next syringe's plunger, with the hypothetical command applied: one per
+    /// unit of work. Between units a plunger changes only by folding settled changes,
+    /// which leaves its outflow as it was, or by a command, after which the executor
+    /// starts the prediction afresh; so copies taken a cycle or two apart still describe
+    /// the machine as it was at the start.
+    fn copy_plunger(&mut self, model: &FlowModel<R, N>) {
+        let i = self.copied as usize;
+        if let (Some(dst), Some(src)) = (self.plungers.get_mut(i), model.plungers().get(i)) {
+            dst.copy_from(src);
+            dst.command(
+                self.syringe_mask & (1 << i) != 0,
+                self.start,
+                model.rates()[i],
+            );
+        }
+        self.copied += 1;
     }
 
     /// Starts predicting `goal` (see `restart`).
@@ -480,40 +504,47 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             Goal::Switch(t) => t as usize,
             Goal::Stop => usize::MAX,
         };
-        let flows = |pl: &[Plunger<R>], at: u64, out: &mut [R; N]| {
-            for (i, (p, r)) in pl.iter().zip(resp).enumerate() {
-                out[i] = p.flow_at(at, r);
-            }
-        };
-        if to == usize::MAX {
-            // A stop has a closed form: each change's volume still to come.
-            let mut v = R::ZERO;
-            for (p, r) in self.plungers[..n].iter().zip(resp) {
-                v += p.remaining(self.k, r);
-            }
-            return Some(Outcome::Volume(self.vol + v));
-        }
         let j = SYRINGE_CHUNK as u64;
         for _ in 0..budget {
+            if (self.copied as usize) < n {
+                self.copy_plunger(model);
+                continue;
+            }
+            if to == usize::MAX {
+                // A stop has a closed form: each change's volume still to come, summed a
+                // syringe per unit (in `vol`; `syringe_stage` counts the syringes done).
+                let i = self.syringe_stage as usize;
+                if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
+                    self.vol += p.remaining(self.k, r);
+                }
+                self.syringe_stage += 1;
+                if self.syringe_stage as usize >= n {
+                    return Some(Outcome::Volume(self.vol));
+                }
+                continue;
+            }
             if self.k - self.start > HORIZON_CYCLES {
                 return Some(Outcome::Never);
             }
-            // One evaluation of every syringe's outflow per unit: the chunk's start (only
-            // the first chunk's; later ones start where the last ended), middle, end.
-            let slot = match self.syringe_stage {
+            // One syringe's outflow at one point per unit: at the chunk's start (only the
+            // first chunk's; later ones start where the last ended), middle and end.
+            let stage = self.syringe_stage as usize;
+            let (point, i) = (stage / n.max(1), stage % n.max(1));
+            let slot = match point {
                 0 => &mut self.q_start,
                 1 => &mut self.q_mid,
                 _ => &mut self.q_end,
             };
-            let at = self.k + j / 2 * self.syringe_stage as u64;
-            flows(&self.plungers[..n], at, slot);
-            if self.syringe_stage < 2 {
+            if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
+                slot[i] = p.flow_at(self.k + j / 2 * point as u64, r);
+            }
+            if stage + 1 < 3 * n {
                 self.syringe_stage += 1;
                 continue;
             }
             let (q0, qm, q1) = (self.q_start, self.q_mid, self.q_end);
             self.q_start = q1;
-            self.syringe_stage = 1;
+            self.syringe_stage = n as u8;
             let span = dt * R::from_u32(j as u32);
             let mut dv = R::ZERO;
             let (mut lead0, mut other0, mut lead1, mut other1) =
