@@ -48,33 +48,16 @@ pub fn flow_step<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R, q: R) -> R {
     if !(q > R::ZERO && q.is_finite()) {
         return flow_within(laws, vin, p, q, tolerance::<R>(), 1);
     }
-    let log_q = q.log2_fast();
-    let mut terms = R::ZERO;
-    let mut yield_sum = R::ZERO;
-    let mut dg_q = R::ZERO;
-    let mut any = false;
-    for (law, &v) in laws.iter().zip(vin) {
-        if v > R::ZERO {
-            any = true;
-            yield_sum += v * law.b;
-            let t = if law.linear {
-                v * law.a * q
-            } else {
-                v * law.a * (law.n * log_q).exp2_fast()
-            };
-            terms += t;
-            dg_q += law.n * t;
-        }
-    }
+    let d = drops(laws, vin, q);
     // Below the yield terms (or with an empty channel) nothing flows.
-    let target = p - yield_sum;
-    if !any || target <= R::ZERO {
+    let target = p - d.yield_sum;
+    if !d.any || target <= R::ZERO {
         return R::ZERO;
     }
-    let g = terms - target;
-    // dg = dg_q / q: the step is q (1 - g / dg_q).
-    let newton = if dg_q > R::ZERO {
-        q - g * q / dg_q
+    let g = d.sum - target;
+    // dg = sum_n / q: the step is q (1 - g / sum_n).
+    let newton = if d.sum_n > R::ZERO {
+        q - g * q / d.sum_n
     } else {
         q * R::TWO
     };
@@ -130,23 +113,9 @@ pub fn flow_within<R: Real>(
     };
     let two_tol = tol * R::TWO;
     for _ in 0..max_iterations {
-        let inv_q = R::ONE / q;
-        // One logarithm serves every material's power of q.
-        let log_q = q.log2_fast();
-        let mut g = -target;
-        let mut dg = R::ZERO;
-        for (law, &v) in laws.iter().zip(vin) {
-            if v > R::ZERO {
-                if law.linear {
-                    g += v * law.a * q;
-                    dg += v * law.a;
-                } else {
-                    let t = v * law.a * (law.n * log_q).exp2_fast();
-                    g += t;
-                    dg += law.n * t * inv_q;
-                }
-            }
-        }
+        let d = drops(laws, vin, q);
+        let g = d.sum - target;
+        let dg = d.sum_n / q;
         if g > R::ZERO {
             hi = Some(match hi {
                 Some(h) if h < q => h,
@@ -174,6 +143,44 @@ pub fn flow_within<R: Real>(
         q = next;
     }
     q
+}
+
+/// The content's pressure drop at flow `q > 0`, in the parts the solves need.
+struct Drops<R> {
+    /// `sum V a q^n` (`V a q` for linear content): the flow-dependent drop.
+    sum: R,
+    /// `sum n V a q^n`: q times the drop's derivative.
+    sum_n: R,
+    /// `sum V b`: the yield terms.
+    yield_sum: R,
+    /// Any content at all.
+    any: bool,
+}
+
+/// `Drops` of content `vin` at flow `q > 0`; one logarithm serves every paste's power.
+#[inline]
+fn drops<R: Real>(laws: &[FlowLaw<R>], vin: &[R], q: R) -> Drops<R> {
+    let log_q = q.log2_fast();
+    let mut d = Drops {
+        sum: R::ZERO,
+        sum_n: R::ZERO,
+        yield_sum: R::ZERO,
+        any: false,
+    };
+    for (law, &v) in laws.iter().zip(vin) {
+        if v > R::ZERO {
+            d.any = true;
+            d.yield_sum += v * law.b;
+            let t = if law.linear {
+                v * law.a * q
+            } else {
+                v * law.a * (law.n * log_q).exp2_fast()
+            };
+            d.sum += t;
+            d.sum_n += law.n * t;
+        }
+    }
+    d
 }
 
 /// A start for a cold solve: each material's own closed form for the whole channel,
