@@ -1273,7 +1273,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 }
 
-/// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
 /// Cycles a bead's end may take to settle before the flow counts as not stopping.
 fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
     // Ten times the slowest line's dead time plus eight time constants, at least 1 s.
@@ -1284,6 +1283,7 @@ fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
     (s / machine.dt()).round_i64().max(1) as u64
 }
 
+/// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
 fn cycles32(c: u64) -> u32 {
     c.min(u32::MAX as u64) as u32
 }

@@ -76,9 +76,6 @@ pub trait Real:
     fn from_i64(x: i64) -> Self;
     /// From a small unsigned integer (one instruction on an FPU).
     fn from_u32(x: u32) -> Self;
-    /// Towards zero into a u32, saturating (NaN gives 0): one instruction on an FPU. For
-    /// `self >= 0` it is the floor.
-    fn trunc_u32(self) -> u32;
     /// Nearest i32 (ties away from zero), saturating; NaN gives 0. For values known to
     /// fit (step positions), without `round_i64`'s wide path.
     fn round_i32(self) -> i32;
@@ -211,10 +208,6 @@ impl Real for f32 {
         x as f32
     }
     #[inline]
-    fn trunc_u32(self) -> u32 {
-        self as u32
-    }
-    #[inline]
     fn round_i32(self) -> i32 {
         let t = self as i32;
         let r = self - t as f32;
@@ -315,10 +308,6 @@ impl Real for f64 {
     #[inline]
     fn from_u32(x: u32) -> Self {
         x as f64
-    }
-    #[inline]
-    fn trunc_u32(self) -> u32 {
-        self as u32
     }
     #[inline]
     fn round_i32(self) -> i32 {

@@ -32,7 +32,8 @@ pub struct Channel<const N: usize> {
     in_channel: [Vol; N],
     /// Index of the slug at the channel exit.
     exit_idx: usize,
-    /// The last `advance` crossed a slug start at the exit or the plate (its slow path).
+    /// An `advance` since `clear_crossed` crossed a slug start at the exit or the plate
+    /// (took its slow path).
     crossed: bool,
     /// Entered volume up to which no slug start reaches the exit or the plate: below it
     /// `advance` only moves volume (kept by `refresh` whenever the slugs change).
@@ -115,9 +116,14 @@ impl<const N: usize> Channel<N> {
     pub fn landing(&self) -> u8 {
         self.slugs.front().map(|s| s.material).unwrap_or(0)
     }
-    /// True when the last `advance` crossed a slug start at the exit or the plate.
+    /// True when an `advance` since `clear_crossed` crossed a slug start at the exit or
+    /// the plate.
     pub fn crossed(&self) -> bool {
         self.crossed
+    }
+    /// Starts a new count for `crossed` (the flow model does, once per cycle).
+    pub fn clear_crossed(&mut self) {
+        self.crossed = false;
     }
     /// Cumulative entered volume.
     pub fn entered(&self) -> Vol {
@@ -178,7 +184,6 @@ impl<const N: usize> Channel<N> {
     /// channel into the filament and lands on the plate. Returns how many material changes
     /// landed on the plate during this advance.
     pub fn advance(&mut self, dv: Vol) -> u32 {
-        self.crossed = false;
         if dv.0 <= 0 {
             return 0;
         }

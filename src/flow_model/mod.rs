@@ -74,8 +74,6 @@ pub struct FlowModel<R, const N: usize> {
     /// The solve's last two answers (unrounded: a tail too weak to move one volume unit a
     /// cycle still warm-starts the next solve), for the extrapolated warm start.
     solved: [R; 2],
-    /// The last step moved a slug start past the channel exit or onto the plate.
-    crossed: bool,
     feeding: Option<u8>,
     all_linear: bool,
     commanded: u32,
@@ -132,7 +130,6 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             next: 0,
             q: R::ZERO,
             solved: [R::ZERO; 2],
-            crossed: false,
             feeding: None,
             all_linear,
             commanded: 0,
@@ -201,7 +198,6 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         if let (Some((f, _)), true) = (best, dv.0 > 0) {
             self.channel.feed(f as u8)?;
             changes = self.channel.advance(dv);
-            self.crossed = self.channel.crossed();
             self.feeding = Some(f as u8);
         }
         self.q = dv.mm3::<R>() * self.inv_dt;
@@ -217,7 +213,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// plate: the step's slow path, which the executor does not pile prediction work on.
     #[inline]
     pub fn crossed(&self) -> bool {
-        self.crossed
+        self.channel.crossed()
     }
 
     /// The valve mask last commanded.
@@ -228,7 +224,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
 
     /// Integrates one control cycle.
     pub fn step(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
-        self.crossed = false;
+        self.channel.clear_crossed();
         if !self.plungers.is_empty() {
             return self.step_syringes();
         }
@@ -271,9 +267,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             let dv = Vol::from_mm3(q * dt);
             if dv.0 > 0 {
                 self.channel.feed(f as u8)?;
-                let c = self.channel.advance(dv);
-                self.crossed = self.channel.crossed();
-                (dv, c)
+                (dv, self.channel.advance(dv))
             } else {
                 (Vol::ZERO, 0)
             }
@@ -320,13 +314,11 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                     impulse -= r0 * rm + k * rm * rm * R::HALF;
                     r0 += k * rm;
                     changes += self.channel.advance(room);
-                    self.crossed = true;
                     total += room;
                 }
                 _ => {
                     let d = Vol::from_mm3(dv);
                     changes += self.channel.advance(d);
-                    self.crossed |= self.channel.crossed();
                     total += d;
                     break;
                 }
@@ -350,7 +342,13 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// Per-material volume in the channel, mm^3.
     pub fn vin(&self) -> [R; N] {
         let mut out = [R::ZERO; N];
-        // The machine's inlets only; the rest of the capacity holds nothing.
+        self.vin_into(&mut out);
+        out
+    }
+
+    /// `vin` written in place: the machine's inlets only (the rest of the capacity holds
+    /// nothing and `out` keeps what it had there), without a copy of the array.
+    pub fn vin_into(&self, out: &mut [R; N]) {
         let inlets = self.laws.len();
         for (o, v) in out[..inlets]
             .iter_mut()
@@ -358,7 +356,6 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
         {
             *o = v.mm3();
         }
-        out
     }
 
     /// Instantaneous flow at the current line pressures and channel content (or the

@@ -36,11 +36,22 @@ pub enum Outcome<R> {
 const LINE_CHUNK: usize = 2 * MAX_CHUNK;
 
 /// Chunk of the syringe look-ahead, cycles: a Simpson integral of the outflows at its
-/// start, middle and end, each evaluated in its own unit of work (the start only for the
-/// first chunk). Longer chunks cost accuracy where a response bends (128 cycles tripled
-/// the whole-job boundary error, to 0.006 mm); this length keeps it at 0.002 mm although
-/// a prediction now takes two units a chunk.
+/// start, middle and end, one syringe at one point per unit of work (the start only for
+/// the first chunk). Longer chunks cost accuracy where a response bends (128 cycles
+/// tripled the whole-job boundary error, to 0.006 mm); at this length the whole-job tests
+/// stay within 0.004 mm although a prediction takes several units a chunk.
 const SYRINGE_CHUNK: usize = MAX_CHUNK;
+
+/// Where in a chunk the goal's inlet takes over: the fraction at which a margin (others
+/// minus goal) going from `m0` at the start to `m1 <= 0` at the end crosses zero, taking
+/// it as linear across the chunk.
+fn crossing<R: Real>(m0: R, m1: R) -> R {
+    if m0 > m1 {
+        (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
+    } else {
+        R::ZERO
+    }
+}
 
 /// Upcoming exit changes the prediction follows.
 const EXITS: usize = 6;
@@ -173,7 +184,8 @@ pub struct Prediction<R, const N: usize> {
     /// Syringe machines: the plungers as they would be after the hypothetical command.
     plungers: [Plunger<R>; N],
     /// Syringe outflows at the chunk's start, middle and end, and which the next unit of
-    /// work evaluates (point * syringes + syringe).
+    /// work evaluates (point * syringes + syringe; for a stop, the syringes summed so far).
+    /// A stop's syringe volumes add up in `vol`.
     q_start: [R; N],
     q_mid: [R; N],
     q_end: [R; N],
@@ -264,14 +276,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             p_scale = p_scale.max(p.supply).max(src.p);
         }
         self.n_exits = model.channel().exit_changes(&mut self.exits);
-        // Only the machine's inlets: the rest of the capacity stays zero.
-        let inlets = model.laws().len();
-        for (v, c) in self.vin[..inlets]
-            .iter_mut()
-            .zip(&model.channel().in_channel()[..inlets])
-        {
-            *v = c.mm3();
-        }
+        model.vin_into(&mut self.vin);
         self.exit_next = 0;
         self.exit_material = model.channel().at_exit();
         self.exit_pos = R::ZERO;
@@ -466,13 +471,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         };
         self.k += j as u64;
         if crossed {
-            // Crossed inside the chunk: interpolate the pressure difference.
-            let f = if m0 > m1 {
-                (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
-            } else {
-                R::ZERO
-            };
-            return Some(Outcome::Volume(self.vol + f * dv));
+            return Some(Outcome::Volume(self.vol + crossing(m0, m1) * dv));
         }
         if let Some((f, imp)) = best {
             self.take(f as u8, dv);
@@ -566,12 +565,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 return Some(Outcome::Volume(self.vol));
             }
             if lead1 > R::ZERO && lead1 >= other1 && settled {
-                let (m0, m1) = (other0 - lead0, other1 - lead1);
-                let f = if m0 > m1 {
-                    (m0 / (m0 - m1)).min(R::ONE).max(R::ZERO)
-                } else {
-                    R::ZERO
-                };
+                let f = crossing(other0 - lead0, other1 - lead1);
                 return Some(Outcome::Volume(self.vol + f * dv));
             }
             self.k += j;
@@ -596,8 +590,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             // which the Newton step then corrects for mixed content and yield.
             let p = imp / span;
             let guess = if self.p_last > R::ZERO && self.q > R::ZERO {
-                // ratio^(1/n) as exp2(log2(ratio) / n): the ratio is positive here.
-                self.q * ((p / self.p_last).log2_fast() / laws[feeding].n).exp2_fast()
+                self.q * (p / self.p_last).pow_fast(R::ONE / laws[feeding].n)
             } else {
                 self.q
             };
