@@ -449,6 +449,31 @@ pub struct Machine<R, const N: usize> {
 }
 
 impl<R: Real, const N: usize> Machine<R, N> {
+    /// No machine: no inlets, no channel, no travel. Stands in for the machine of an
+    /// executor not configured yet (the board builds that executor at compile time).
+    pub const UNCONFIGURED: Self = Machine {
+        d_mm: R::ZERO,
+        v_channel: Vol::ZERO,
+        v_hang: Vol::ZERO,
+        bead_area: R::ZERO,
+        inlets: heapless::Vec::new(),
+        motion: Motion {
+            steps_per_mm: [R::ZERO; 3],
+            min_mm: [R::ZERO; 3],
+            max_mm: [R::ZERO; 3],
+            max_speed: [R::ZERO; 3],
+            max_accel: [R::ZERO; 3],
+            travel_speed: R::ZERO,
+            max_steps_per_cycle: 0,
+            wait_for_flow_decay: false,
+        },
+        period_us: 0,
+        v_flow_max: R::ZERO,
+        corner_radius: R::ZERO,
+        q_stop: R::ZERO,
+        syringes: false,
+    };
+
     /// Channel plus hanging filament: the volume between the junction and the plate.
     pub fn v_transit(&self) -> Vol {
         self.v_channel + self.v_hang

@@ -263,7 +263,7 @@ struct Tracker<R, const N: usize> {
 }
 
 impl<R: Real, const N: usize> Tracker<R, N> {
-    fn new() -> Self {
+    const fn new() -> Self {
         Tracker {
             goal: None,
             pred: Prediction::new(),
@@ -382,26 +382,20 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
-    /// An idle executor for `machine`.
-    pub fn new(machine: Machine<R, N>) -> Self {
-        let model = FlowModel::new(&machine, 0);
-        let steps = StepGen::new(
-            machine.motion.steps_per_mm,
-            machine.motion.max_steps_per_cycle,
-            [0; 3],
-        );
-        let window = lead_window(&machine);
-        let settle_limit = settle_limit(&machine);
+    /// An executor of no machine (`Machine::UNCONFIGURED`); `load_config` gives it one.
+    /// A constant constructor: the board keeps its executor (41 KiB in f32 with four
+    /// inlets) in a static built at compile time, never on its 64 KiB stack.
+    pub const fn unconfigured() -> Self {
         Executor {
-            settle_limit,
-            model,
-            steps,
+            machine: Machine::UNCONFIGURED,
+            model: FlowModel::unconfigured(),
+            steps: StepGen::idle(),
             plan: Deque::new(),
             boundaries: Deque::new(),
             ends: Deque::new(),
             open: None,
             last_final: None,
-            known_to: Some(Vol::ZERO),
+            known_to: None,
             design_um: [0; 3],
             commands: 0,
             ended: false,
@@ -413,10 +407,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
             want: None,
             switch: Tracker::new(),
             stop: Tracker::new(),
-            window,
+            window: Vol::ZERO,
+            settle_limit: 0,
             short: Vol::ZERO,
-            dt: machine.dt(),
-            inv_s: R::ONE / machine.bead_area,
+            dt: R::ZERO,
+            inv_s: R::ZERO,
             lost: Vol::ZERO,
             last_now: None,
             cycle: 0,
@@ -429,17 +424,66 @@ impl<R: Real, const N: usize> Executor<R, N> {
             last_index: 0,
             plunger_vol: [Vol::ZERO; N],
             plunger_steps: [0; N],
-            plunger_per_cycle: core::array::from_fn(|i| {
-                machine
-                    .inlets
-                    .get(i)
-                    .and_then(|inlet| inlet.syringe)
-                    .filter(|_| machine.syringes)
-                    .map(|sy| Vol::from_mm3(sy.rate * machine.dt()))
-                    .unwrap_or(Vol::ZERO)
-            }),
-            machine,
+            plunger_per_cycle: [Vol::ZERO; N],
         }
+    }
+
+    /// An idle executor for `machine`.
+    pub fn new(machine: Machine<R, N>) -> Self {
+        let mut e = Self::unconfigured();
+        e.configure(machine);
+        e
+    }
+
+    /// Makes this the idle executor `new(machine)` builds, in place (the board does this
+    /// in its control interrupt, where a 41 KiB temporary would overflow the stack).
+    fn configure(&mut self, machine: Machine<R, N>) {
+        self.machine = machine;
+        let m = &self.machine;
+        self.model.reset(m, 0);
+        self.steps = StepGen::new(m.motion.steps_per_mm, m.motion.max_steps_per_cycle, [0; 3]);
+        self.window = lead_window(m);
+        self.settle_limit = settle_limit(m);
+        self.dt = m.dt();
+        self.inv_s = R::ONE / m.bead_area;
+        self.plunger_per_cycle = core::array::from_fn(|i| {
+            m.inlets
+                .get(i)
+                .and_then(|inlet| inlet.syringe)
+                .filter(|_| m.syringes)
+                .map(|sy| Vol::from_mm3(sy.rate * m.dt()))
+                .unwrap_or(Vol::ZERO)
+        });
+        self.plan.clear();
+        self.boundaries.clear();
+        self.ends.clear();
+        self.open = None;
+        self.last_final = None;
+        self.known_to = Some(Vol::ZERO);
+        self.design_um = [0; 3];
+        self.commands = 0;
+        self.ended = false;
+        self.begun = false;
+        self.phase = Phase::Idle;
+        self.head = Vol::ZERO;
+        self.head_pos = [R::ZERO; 3];
+        self.entry_material = 0;
+        self.want = None;
+        self.switch.reset();
+        self.stop.reset();
+        self.short = Vol::ZERO;
+        self.lost = Vol::ZERO;
+        self.last_now = None;
+        self.cycle = 0;
+        self.drivers_on = false;
+        self.valves_out = 0;
+        self.pause_requested = false;
+        self.pending_fault = None;
+        self.last_dv = Vol::ZERO;
+        self.last_q = R::ZERO;
+        self.last_index = 0;
+        self.plunger_vol = [Vol::ZERO; N];
+        self.plunger_steps = [0; N];
     }
 
     /// The machine this executor runs.
@@ -489,7 +533,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             *p = um(head_um[a]);
         }
         self.check_limits(pos)?;
-        self.model = FlowModel::new(&self.machine, initial_material);
+        self.model.reset(&self.machine, initial_material);
         self.steps = StepGen::new(
             self.machine.motion.steps_per_mm,
             self.machine.motion.max_steps_per_cycle,
@@ -567,7 +611,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             Ok(m) => {
                 let position = self.steps.position();
                 let last_now = self.last_now;
-                *self = Executor::new(m);
+                self.configure(m);
                 self.steps = StepGen::new(
                     self.machine.motion.steps_per_mm,
                     self.machine.motion.max_steps_per_cycle,

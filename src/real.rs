@@ -23,6 +23,8 @@ pub trait Real:
 {
     /// 0
     const ZERO: Self;
+    /// Not a number (the marker for "none yet").
+    const NAN: Self;
     /// 1
     const ONE: Self;
     /// 2
@@ -101,6 +103,7 @@ pub trait Real:
 
 impl Real for f32 {
     const ZERO: Self = 0.0;
+    const NAN: Self = f32::NAN;
     const ONE: Self = 1.0;
     const TWO: Self = 2.0;
     const HALF: Self = 0.5;
@@ -224,6 +227,7 @@ impl Real for f32 {
 
 impl Real for f64 {
     const ZERO: Self = 0.0;
+    const NAN: Self = f64::NAN;
     const ONE: Self = 1.0;
     const TWO: Self = 2.0;
     const HALF: Self = 0.5;

@@ -28,13 +28,23 @@ pub struct StepGen<R> {
 }
 
 impl<R: Real> StepGen<R> {
+    /// A generator of no machine (all zero); `new` makes a working one.
+    pub const fn idle() -> Self {
+        StepGen {
+            steps_per_mm: [R::ZERO; 3],
+            max_per_cycle: 0,
+            position: [0; 3],
+            last_z: R::ZERO,
+        }
+    }
+
     /// A generator whose axes stand at `position` steps.
-    pub fn new(steps_per_mm: [R; 3], max_per_cycle: u32, position: [i64; 3]) -> Self {
+    pub const fn new(steps_per_mm: [R; 3], max_per_cycle: u32, position: [i64; 3]) -> Self {
         StepGen {
             steps_per_mm,
             max_per_cycle,
             position,
-            last_z: R::of(f64::NAN),
+            last_z: R::NAN,
         }
     }
 

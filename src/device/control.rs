@@ -15,6 +15,25 @@ use crate::wire::{Halt, LinkLossPolicy, Mode, Settings, Snapshot};
 /// The executor the board runs: f32 (the M4's FPU), four inlets.
 pub type Exec = Executor<f32, { crate::DEFAULT_INLETS }>;
 
+/// The executor, built at compile time with no machine, and whether a config has been
+/// loaded into it. It is never moved or rebuilt: configs load in place.
+struct ExecSlot {
+    exec: Exec,
+    loaded: bool,
+}
+
+impl ExecSlot {
+    fn as_ref(&self) -> Option<&Exec> {
+        self.loaded.then_some(&self.exec)
+    }
+    fn as_mut(&mut self) -> Option<&mut Exec> {
+        self.loaded.then_some(&mut self.exec)
+    }
+    fn is_none(&self) -> bool {
+        !self.loaded
+    }
+}
+
 /// Orders taken per tick: orders are rare, and each may cost a whole plan's reset.
 pub const ORDERS_PER_TICK: usize = 2;
 /// Job commands planned per tick (each is a few microseconds of planning); 8 per 100 us
@@ -90,7 +109,7 @@ enum Active {
 
 /// The control loop.
 pub struct Control {
-    exec: Option<Exec>,
+    exec: ExecSlot,
     settings: Settings,
     active: Active,
     halt: Option<Halt>,
@@ -108,18 +127,21 @@ pub struct Control {
 impl Control {
     /// The control loop after a reset: nothing configured, outputs to be made safe by
     /// `power_up`. After a watchdog reset it starts halted, so the user learns why.
-    pub fn new(reset: ResetCause) -> Self {
+    pub const fn new(reset: ResetCause) -> Self {
         let (active, halt) = match reset {
             ResetCause::PowerOn => (Active::Idle, None),
             ResetCause::Watchdog => (Active::Halted, Some(Halt::Fault(Fault::Watchdog))),
         };
         Control {
-            exec: None,
-            settings: Settings::default(),
+            exec: ExecSlot {
+                exec: Exec::unconfigured(),
+                loaded: false,
+            },
+            settings: Settings::DEFAULT,
             active,
             halt,
             homed: false,
-            cmd: Commanded::default(),
+            cmd: Commanded::ZERO,
             last_now: None,
             exec_now: 0,
             exec_ticking: false,
@@ -127,6 +149,15 @@ impl Control {
             held: None,
             report: None,
             estop: false,
+        }
+    }
+
+    /// Records why the board started, for a `Control` built before it was known (the
+    /// board's is built at compile time): after a watchdog reset it starts halted.
+    pub fn set_reset_cause(&mut self, reset: ResetCause) {
+        if reset == ResetCause::Watchdog {
+            self.active = Active::Halted;
+            self.halt = Some(Halt::Fault(Fault::Watchdog));
         }
     }
 
@@ -148,27 +179,25 @@ impl Control {
             out,
             state: &mut self.cmd,
         };
-        match &mut self.exec {
-            Some(e) => {
-                if e.load_config(config, &mut t).is_err() {
-                    let h = Halt::Fault(Fault::InvalidConfig);
-                    self.halt_with(h, out);
-                    return Err(h);
-                }
-            }
-            None => match config.validate::<f32, { crate::DEFAULT_INLETS }>() {
-                Ok(m) => self.exec = Some(Executor::new(m)),
-                Err(_) => return Err(Halt::Fault(Fault::InvalidConfig)),
-            },
+        if !self.exec.loaded && config.validate::<f32, { crate::DEFAULT_INLETS }>().is_err() {
+            // Nothing was configured, so nothing is wrong with the machine: just refused.
+            return Err(Halt::Fault(Fault::InvalidConfig));
         }
+        // In place: the executor lives wherever this `Control` does (a static on the board).
+        if self.exec.exec.load_config(config, &mut t).is_err() {
+            let h = Halt::Fault(Fault::InvalidConfig);
+            self.halt_with(h, out);
+            return Err(h);
+        }
+        self.exec.loaded = true;
         // New steps per mm or limits: the old position means nothing.
         self.homed = false;
         Ok(())
     }
 
-    /// The snapshot as of the last tick.
-    pub fn snapshot(&self) -> Snapshot {
-        let mode = match (&self.exec, self.active) {
+    /// What the loop is doing (the snapshot's `mode`, without the rest of it).
+    pub fn mode(&self) -> Mode {
+        match (self.exec.as_ref(), self.active) {
             (_, Active::Halted) => Mode::Halted,
             (None, _) => Mode::Unconfigured,
             (_, Active::Idle) => Mode::Idle,
@@ -176,8 +205,13 @@ impl Control {
             (_, Active::Jog(_)) => Mode::Jogging,
             (_, Active::ValveTest) => Mode::ValveTest,
             (_, Active::Job) => Mode::Job,
-        };
-        let (run, command, speed, q) = match (&self.report, &self.exec) {
+        }
+    }
+
+    /// The snapshot as of the last tick.
+    pub fn snapshot(&self) -> Snapshot {
+        let mode = self.mode();
+        let (run, command, speed, q) = match (&self.report, self.exec.as_ref()) {
             (Some(r), Some(e)) => (
                 e.state(),
                 r.command_index.saturating_sub(LEAD_IN),
@@ -188,7 +222,7 @@ impl Control {
             _ => (RunState::Idle, 0, 0.0, 0.0),
         };
         let mut position_um = [0i32; 3];
-        if let Some(e) = &self.exec {
+        if let Some(e) = self.exec.as_ref() {
             let spm = e.machine().motion.steps_per_mm;
             for a in 0..3 {
                 let mm = self.cmd.steps[a] as f32 / spm[a];
@@ -269,7 +303,7 @@ impl Control {
             out,
             state: &mut self.cmd,
         };
-        if let Some(e) = &mut self.exec {
+        if let Some(e) = self.exec.as_mut() {
             match why {
                 Halt::Fault(f) => e.fault(f, &mut t),
                 // The executor knows nothing of homing; stopping it is what matters.
@@ -289,7 +323,7 @@ impl Control {
             Order::EStop => self.halt_with(Halt::Fault(Fault::EStop), out),
             Order::ClearFault => {
                 if halted && !inputs.estop {
-                    if let Some(e) = &mut self.exec {
+                    if let Some(e) = self.exec.as_mut() {
                         e.clear_fault();
                     }
                     self.halt = None;
@@ -305,19 +339,19 @@ impl Control {
             _ if halted || self.exec.is_none() => {}
             Order::Abort => self.abort(out),
             Order::Pause => {
-                if let (Active::Job, Some(e)) = (self.active, &mut self.exec) {
+                if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     e.pause();
                 }
             }
             Order::Resume => {
-                if let (Active::Job, Some(e)) = (self.active, &mut self.exec) {
+                if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     e.resume();
                 }
             }
             Order::LinkLost(policy) => match self.active {
                 Active::Job => match policy {
                     LinkLossPolicy::Pause => {
-                        if let Some(e) = &mut self.exec {
+                        if let Some(e) = self.exec.as_mut() {
                             e.pause();
                         }
                     }
@@ -375,7 +409,7 @@ impl Control {
             out,
             state: &mut self.cmd,
         };
-        if let Some(e) = &mut self.exec {
+        if let Some(e) = self.exec.as_mut() {
             if matches!(self.active, Active::Job) {
                 e.abort(&mut t);
                 e.clear_fault();
@@ -388,19 +422,23 @@ impl Control {
     }
 
     fn position_mm(&self, axis: usize) -> f32 {
-        match &self.exec {
+        match self.exec.as_ref() {
             Some(e) => self.cmd.steps[axis] as f32 / e.machine().motion.steps_per_mm[axis],
             None => 0.0,
         }
     }
 
     fn start_jog(&mut self, axis: Axis, um: i32, out: &mut impl Outputs) {
-        let Some(e) = &self.exec else { return };
+        let Some(e) = self.exec.as_ref() else { return };
         if !matches!(self.active, Active::Idle) || !self.homed || um == 0 {
             return;
         }
         let m = &e.machine().motion;
         let a = axis.index();
+        if a >= 3 {
+            // Plungers move only in a job (the link refuses such jogs by name).
+            return;
+        }
         let from = self.position_mm(a);
         let to = from + um as f32 * 1e-3;
         // The link refuses such jogs with the numbers; this is the last line of defence.
@@ -424,7 +462,7 @@ impl Control {
     }
 
     fn start(&mut self, epoch: u8, start_um: [i32; 3], material: u8, out: &mut impl Outputs) {
-        let Some(e) = &mut self.exec else { return };
+        let Some(e) = self.exec.as_mut() else { return };
         if !matches!(self.active, Active::Idle) || !self.homed {
             return;
         }
@@ -508,7 +546,7 @@ impl Control {
     }
 
     fn run_job(&mut self, gap: Option<u64>, link: &mut impl FromLink, out: &mut impl Outputs) {
-        let Some(e) = &mut self.exec else { return };
+        let Some(e) = self.exec.as_mut() else { return };
         for _ in 0..PUSHES_PER_TICK {
             if e.room() == 0 {
                 break;
@@ -569,7 +607,7 @@ impl Control {
     }
 
     fn run_homing(&mut self, mut h: Homing, inputs: Inputs, out: &mut impl Outputs) {
-        let Some(e) = &self.exec else { return };
+        let Some(e) = self.exec.as_ref() else { return };
         let m = &e.machine().motion;
         let dt = e.machine().dt();
         let axis = self.settings.home_order[h.index.min(2)];
@@ -642,7 +680,7 @@ impl Control {
     }
 
     fn run_jog(&mut self, mut j: Jog, out: &mut impl Outputs) {
-        let Some(e) = &self.exec else { return };
+        let Some(e) = self.exec.as_ref() else { return };
         let m = &e.machine().motion;
         let a = j.axis.index();
         j.cycles += 1;

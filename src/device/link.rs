@@ -38,6 +38,9 @@ pub struct BoardInfo {
     pub firmware: &'static str,
     /// Highest step rate per axis the board's step generator makes, steps/s.
     pub max_step_hz: f32,
+    /// The board's control loop rate, Hz: a config must ask for exactly this
+    /// (`control.rate_hz`), or its model would run faster or slower than real time.
+    pub control_hz: u32,
 }
 
 /// Counters of what the link saw; for tests and the debug log.
@@ -57,6 +60,19 @@ pub struct LinkStats {
     pub no_room: u32,
     /// Replies dropped because the transmit buffer was full.
     pub tx_dropped: u32,
+}
+
+impl LinkStats {
+    /// Nothing seen yet.
+    pub const ZERO: LinkStats = LinkStats {
+        frames: 0,
+        bad: 0,
+        oversize: 0,
+        duplicates: 0,
+        out_of_order: 0,
+        no_room: 0,
+        tx_dropped: 0,
+    };
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -138,8 +154,9 @@ struct Core<S: JobStore> {
 }
 
 impl<S: JobStore> Link<S> {
-    /// A link with no session, no config and an empty store.
-    pub fn new(store: S, info: BoardInfo) -> Self {
+    /// A link with no session, no config and an empty store. A constant constructor: the
+    /// board keeps its link (6 KiB) in a static built at compile time.
+    pub const fn new(store: S, info: BoardInfo) -> Self {
         Link {
             reader: FrameReader::new(),
             core: Core {
@@ -153,19 +170,22 @@ impl<S: JobStore> Link<S> {
                 feeder: None,
                 config: None,
                 config_hash: None,
-                settings: Settings::default(),
+                settings: Settings::DEFAULT,
                 tx: Deque::new(),
                 last_rx: None,
                 lost_applied: false,
                 link_lost: false,
                 epoch: 0,
                 fed: 0,
-                stats: LinkStats::default(),
+                stats: LinkStats::ZERO,
             },
         }
     }
 
     /// Takes bytes from USB at `now_us`; replies queue up for `take_tx`.
+    // Never inlined: on the board the link task would otherwise carry every request's
+    // locals in one frame of several KiB.
+    #[inline(never)]
     pub fn receive(&mut self, bytes: &[u8], now_us: u64, port: &mut impl ToControl) {
         let mut rest = bytes;
         while !rest.is_empty() {
@@ -199,12 +219,18 @@ impl<S: JobStore> Link<S> {
 
     /// Background work, called often: job store preparation and writes, checking the
     /// stored body, feeding the running job, noticing a silent host.
+    // Never inlined: on the board the link task would otherwise carry every request's
+    // locals in one frame of several KiB.
+    #[inline(never)]
     pub fn poll(&mut self, now_us: u64, port: &mut impl ToControl) {
         self.core.poll(now_us, port);
     }
 
     /// The USB connection went away (cable, host closed the port): applies the link-loss
     /// policy at once if something runs.
+    // Never inlined: on the board the link task would otherwise carry every request's
+    // locals in one frame of several KiB.
+    #[inline(never)]
     pub fn disconnected(&mut self, port: &mut impl ToControl) {
         self.reader.clear();
         self.core.lose_link(port);
@@ -424,6 +450,7 @@ impl<S: JobStore> Core<S> {
     }
 
     /// Encodes and queues a reply; returns its bytes for the duplicate cache.
+    #[inline(never)] // keeps the board's link frames small (see `receive`)
     fn send(&mut self, hdr: &DeviceHeader, reply: &Reply) -> Option<heapless::Vec<u8, REPLY_MAX>> {
         // A leading delimiter, so a reply never merges with a cut one before it.
         let mut buf = [0u8; REPLY_MAX];
@@ -443,6 +470,7 @@ impl<S: JobStore> Core<S> {
     }
 
     /// Takes a chunk; None if there is no buffer for it (not taken at all).
+    #[inline(never)] // keeps the board's link frames small (see `receive`)
     fn chunk(&mut self, offset: u32, data: &[u8]) -> Option<Reply> {
         let Upload::Receiving {
             header,
@@ -486,6 +514,15 @@ impl<S: JobStore> Core<S> {
         Some(Reply::Ack)
     }
 
+    /// Refuses motion and valve tests while an upload prepares or writes the store (flash
+    /// erases and writes stall the chip; `poll_upload` does them only while all is safe).
+    fn not_uploading(&self) -> Result<(), Refusal> {
+        match self.upload {
+            Upload::Preparing(_) | Upload::Receiving { .. } => Err(Refusal::Uploading),
+            _ => Ok(()),
+        }
+    }
+
     fn snapshot_busy(&self, port: &impl ToControl) -> Option<Refusal> {
         let s = port.snapshot();
         match s.mode {
@@ -503,6 +540,7 @@ impl<S: JobStore> Core<S> {
         }
     }
 
+    #[inline(never)] // keeps the board's link frames small (see `receive`)
     fn act(&mut self, req: Request<'_>, port: &mut impl ToControl) -> Result<Reply, Refusal> {
         let snap = port.snapshot();
         let halted = || match snap.halt {
@@ -531,6 +569,12 @@ impl<S: JobStore> Core<S> {
                     return Err(Refusal::Config(text(format_args!(
                         "motion.max_step_rate_hz: above the {} steps/s this board makes",
                         self.info.max_step_hz as u32
+                    ))));
+                }
+                if c.control.rate_hz != self.info.control_hz {
+                    return Err(Refusal::Config(text(format_args!(
+                        "control.rate_hz: this board's control loop runs at {} Hz",
+                        self.info.control_hz
                     ))));
                 }
                 if !port.post_config(&c) {
@@ -627,6 +671,7 @@ impl<S: JobStore> Core<S> {
                 if self.config.is_none() {
                     return Err(Refusal::NoConfig);
                 }
+                self.not_uploading()?;
                 if snap.mode != Mode::Idle {
                     return Err(Refusal::Busy { mode: snap.mode });
                 }
@@ -638,13 +683,17 @@ impl<S: JobStore> Core<S> {
                 let Some(c) = &self.config else {
                     return Err(Refusal::NoConfig);
                 };
+                let a = axis.index();
+                if a >= 3 {
+                    return Err(Refusal::NotJoggable { axis });
+                }
+                self.not_uploading()?;
                 if snap.mode != Mode::Idle {
                     return Err(Refusal::Busy { mode: snap.mode });
                 }
                 if !snap.homed {
                     return Err(Refusal::NotHomed);
                 }
-                let a = axis.index();
                 let min_um = mm_to_um(c.motion.travel_min_mm[a]);
                 let max_um = mm_to_um(c.motion.travel_max_mm[a]);
                 let target_um = snap.position_um[a].saturating_add(um);
@@ -668,6 +717,10 @@ impl<S: JobStore> Core<S> {
                 if inlet >= inlets {
                     return Err(Refusal::NoSuchInlet { inlet, inlets });
                 }
+                if open {
+                    // Closing is always allowed: it is the safe direction.
+                    self.not_uploading()?;
+                }
                 if !matches!(snap.mode, Mode::Idle | Mode::ValveTest) {
                     return Err(Refusal::Busy { mode: snap.mode });
                 }
@@ -677,6 +730,7 @@ impl<S: JobStore> Core<S> {
         }
     }
 
+    #[inline(never)] // keeps the board's link frames small (see `receive`)
     fn begin_job(&mut self, h: JobHeader, port: &impl ToControl) -> Result<Reply, Refusal> {
         if let Some(r) = self.snapshot_busy(port) {
             // Preparing the store stalls the chip on flash boards: never while anything moves.
@@ -800,9 +854,14 @@ impl<S: JobStore> Core<S> {
     }
 
     fn poll(&mut self, now: u64, port: &mut impl ToControl) {
-        self.poll_upload();
-        self.feed(port);
         let snap = port.snapshot();
+        // Erasing or writing flash stalls every fetch from it: only while nothing moves
+        // and every valve is shut (the requests that could change that are refused while
+        // an upload writes, so this holds until the upload is done).
+        let quiet =
+            matches!(snap.mode, Mode::Unconfigured | Mode::Idle | Mode::Halted) && snap.valves == 0;
+        self.poll_upload(quiet);
+        self.feed(port);
         let watched = matches!(
             snap.mode,
             Mode::Job | Mode::Homing | Mode::Jogging | Mode::ValveTest
@@ -832,8 +891,9 @@ impl<S: JobStore> Core<S> {
         }
     }
 
-    fn poll_upload(&mut self) {
+    fn poll_upload(&mut self, quiet: bool) {
         match &mut self.upload {
+            Upload::Preparing(_) | Upload::Receiving { .. } if !quiet => {}
             Upload::Preparing(h) => match self.store.prepare_step() {
                 Ok(true) => {
                     let header = h.clone();

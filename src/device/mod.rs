@@ -8,12 +8,14 @@
 pub mod control;
 pub mod link;
 pub mod safety;
+pub mod serve;
 pub mod sim;
 pub mod store;
 
 pub use control::{Control, Inputs, ResetCause, Tick};
 pub use link::{BoardInfo, Link};
-pub use safety::force_safe;
+pub use safety::{force_safe, EStopGuard, Latch};
+pub use serve::{serve, HostPort, Pace, PortClosed};
 pub use sim::{Queues, SimBoard};
 pub use store::{JobStore, RamStore};
 

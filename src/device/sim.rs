@@ -74,6 +74,7 @@ pub const SIM_INFO: BoardInfo = BoardInfo {
     name: "sim",
     firmware: env!("CARGO_PKG_VERSION"),
     max_step_hz: 50_000.0,
+    control_hz: 10_000,
 };
 
 /// Watchdog timeout of the simulated board, us (the firmware's too).

@@ -48,32 +48,51 @@ pub struct Channel<const N: usize> {
 pub struct ChannelFull;
 
 impl<const N: usize> Channel<N> {
-    /// A channel and filament full of `material`.
-    pub fn full_of(material: u8, v_channel: Vol, v_hang: Vol) -> Self {
-        let v_transit = v_channel + v_hang;
-        let mut slugs = Deque::new();
-        let _ = slugs.push_back(Slug {
-            material,
-            start: Vol::ZERO,
-        });
-        let mut in_channel = [Vol::ZERO; N];
-        if let Some(v) = in_channel.get_mut(material as usize) {
-            *v = v_channel;
-        }
-        let mut c = Channel {
-            slugs,
-            entered: v_transit,
-            v_channel,
-            v_transit,
-            in_channel,
+    /// A channel of no volume holding nothing; `refill` gives it its volumes. A constant
+    /// constructor, so a model can be built at compile time.
+    pub const fn empty() -> Self {
+        Channel {
+            slugs: Deque::new(),
+            entered: Vol::ZERO,
+            v_channel: Vol::ZERO,
+            v_transit: Vol::ZERO,
+            in_channel: [Vol::ZERO; N],
             exit_idx: 0,
             crossed: false,
             clear_until: Vol::ZERO,
-            newest_m: material,
-            exit_m: material,
-        };
-        c.refresh();
+            newest_m: 0,
+            exit_m: 0,
+        }
+    }
+
+    /// A channel and filament full of `material`.
+    pub fn full_of(material: u8, v_channel: Vol, v_hang: Vol) -> Self {
+        let mut c = Self::empty();
+        c.refill(material, v_channel, v_hang);
         c
+    }
+
+    /// Makes this the channel of `full_of(material, v_channel, v_hang)`, in place.
+    pub fn refill(&mut self, material: u8, v_channel: Vol, v_hang: Vol) {
+        let v_transit = v_channel + v_hang;
+        self.slugs.clear();
+        let _ = self.slugs.push_back(Slug {
+            material,
+            start: Vol::ZERO,
+        });
+        self.in_channel = [Vol::ZERO; N];
+        if let Some(v) = self.in_channel.get_mut(material as usize) {
+            *v = v_channel;
+        }
+        self.entered = v_transit;
+        self.v_channel = v_channel;
+        self.v_transit = v_transit;
+        self.exit_idx = 0;
+        self.crossed = false;
+        self.clear_until = Vol::ZERO;
+        self.newest_m = material;
+        self.exit_m = material;
+        self.refresh();
     }
 
     /// Works out the fast path's limits after the slugs changed.

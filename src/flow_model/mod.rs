@@ -84,59 +84,88 @@ pub struct FlowModel<R, const N: usize> {
 }
 
 impl<R: Real, const N: usize> FlowModel<R, N> {
-    /// A model at rest: valves shut, lines vented, channel and filament full of `material`.
-    pub fn new(machine: &Machine<R, N>, material: u8) -> Self {
-        let dt = machine.dt();
-        let mut params = heapless::Vec::new();
-        let mut powers = heapless::Vec::new();
-        let mut lines = heapless::Vec::new();
-        let mut laws = heapless::Vec::new();
-        let mut all_linear = true;
-        let mut responses = heapless::Vec::new();
-        let mut plungers = heapless::Vec::new();
-        let mut rates = [R::ZERO; N];
-        for (i, inlet) in machine.inlets.iter().enumerate() {
-            if let Some(sy) = inlet.syringe.filter(|_| machine.syringes) {
-                let _ = responses.push(Response::new(
-                    sy.lag_k.to_f64(),
-                    sy.lag_n.to_f64(),
-                    machine.period_us as f64 * 1e-6,
-                ));
-                let _ = plungers.push(Plunger::default());
-                rates[i] = sy.rate;
-            }
-            let p = LineParams::new(inlet, dt);
-            let mut pw: Powers<R> = [[R::ONE; MAX_CHUNK + 1]; 2];
-            for (row, a) in [p.alpha_rise, p.alpha_decay].into_iter().enumerate() {
-                for j in 1..=MAX_CHUNK {
-                    pw[row][j] = pw[row][j - 1] * (R::ONE - a);
-                }
-            }
-            // Capacities equal the machine's, so these pushes cannot fail.
-            let _ = params.push(p);
-            let _ = powers.push(pw);
-            let _ = lines.push(Line::default());
-            let _ = laws.push(inlet.law);
-            all_linear &= inlet.law.linear;
-        }
+    /// A model of no machine (no inlets, no channel); `reset` gives it one. A constant
+    /// constructor: the board builds its model at compile time, in a static.
+    pub const fn unconfigured() -> Self {
         FlowModel {
-            params,
-            powers,
-            lines,
-            laws,
-            channel: Channel::full_of(material, machine.v_channel, machine.v_hang),
-            dt,
-            inv_dt: R::ONE / dt,
+            params: heapless::Vec::new(),
+            powers: heapless::Vec::new(),
+            lines: heapless::Vec::new(),
+            laws: heapless::Vec::new(),
+            channel: Channel::empty(),
+            dt: R::ZERO,
+            inv_dt: R::ZERO,
             next: 0,
             q: R::ZERO,
             solved: [R::ZERO; 2],
             feeding: None,
-            all_linear,
+            all_linear: false,
             commanded: 0,
-            responses,
-            plungers,
-            rates,
+            responses: heapless::Vec::new(),
+            plungers: heapless::Vec::new(),
+            rates: [R::ZERO; N],
         }
+    }
+
+    /// A model at rest: valves shut, lines vented, channel and filament full of `material`.
+    pub fn new(machine: &Machine<R, N>, material: u8) -> Self {
+        let mut m = Self::unconfigured();
+        m.reset(machine, material);
+        m
+    }
+
+    /// Makes this the model `new(machine, material)` builds, in place: the model is 12 KiB
+    /// (f32, four inlets), which the board's control interrupt must not build on its stack
+    /// and move.
+    pub fn reset(&mut self, machine: &Machine<R, N>, material: u8) {
+        let dt = machine.dt();
+        self.params.clear();
+        self.powers.clear();
+        self.lines.clear();
+        self.laws.clear();
+        self.responses.clear();
+        self.plungers.clear();
+        self.rates = [R::ZERO; N];
+        self.all_linear = true;
+        for (i, inlet) in machine.inlets.iter().enumerate() {
+            if let Some(sy) = inlet.syringe.filter(|_| machine.syringes) {
+                // Capacities equal the machine's, so these pushes cannot fail.
+                if self.responses.push(Response::EMPTY).is_ok() {
+                    if let Some(r) = self.responses.last_mut() {
+                        r.fill(
+                            sy.lag_k.to_f64(),
+                            sy.lag_n.to_f64(),
+                            machine.period_us as f64 * 1e-6,
+                        );
+                    }
+                }
+                let _ = self.plungers.push(Plunger::IDLE);
+                self.rates[i] = sy.rate;
+            }
+            let p = LineParams::new(inlet, dt);
+            if self.powers.push([[R::ONE; MAX_CHUNK + 1]; 2]).is_ok() {
+                if let Some(pw) = self.powers.last_mut() {
+                    for (row, a) in [p.alpha_rise, p.alpha_decay].into_iter().enumerate() {
+                        for j in 1..=MAX_CHUNK {
+                            pw[row][j] = pw[row][j - 1] * (R::ONE - a);
+                        }
+                    }
+                }
+            }
+            let _ = self.params.push(p);
+            let _ = self.lines.push(Line::default());
+            let _ = self.laws.push(inlet.law);
+            self.all_linear &= inlet.law.linear;
+        }
+        self.channel
+            .refill(material, machine.v_channel, machine.v_hang);
+        self.dt = dt;
+        self.inv_dt = R::ONE / dt;
+        self.next = 0;
+        self.q = R::ZERO;
+        self.solved = [R::ZERO; 2];
+        self.feeding = None;
+        self.commanded = 0;
     }
 
     /// Commands the valves: bit i of `mask` opens inlet i. Acts after each valve's dead

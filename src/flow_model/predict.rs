@@ -74,7 +74,7 @@ struct PLine<R> {
 }
 
 impl<R: Real> PLine<R> {
-    fn idle() -> Self {
+    const fn idle() -> Self {
         PLine {
             p: R::ZERO,
             open: false,
@@ -204,7 +204,7 @@ impl<R: Real, const N: usize> Default for Prediction<R, N> {
 
 impl<R: Real, const N: usize> Prediction<R, N> {
     /// An idle prediction (no goal yet); `restart` sets it going.
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         Prediction {
             goal: Goal::Stop,
             lines: [PLine::idle(); N],
@@ -233,7 +233,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             q: R::ZERO,
             p_last: R::ZERO,
             p_scale: R::ZERO,
-            plungers: [Plunger::default(); N],
+            plungers: [Plunger::IDLE; N],
             n_plungers: 0,
             q_start: [R::ZERO; N],
             q_mid: [R::ZERO; N],

@@ -31,20 +31,37 @@ pub struct Response<R> {
 }
 
 impl<R: Real> Response<R> {
+    /// No table yet (settled at once); `fill` makes one. A constant, so a model can be
+    /// built at compile time and its tables filled in place.
+    pub const EMPTY: Self = Response {
+        half_steps: 1,
+        end_half: 0,
+        inv_half_steps: R::ONE,
+        f: [R::ZERO; RESPONSE_POINTS],
+        h: [R::ZERO; RESPONSE_POINTS],
+    };
+
     /// The table for Weibull `k`, `n` and control cycles of `dt` seconds: the smallest
     /// whole number of cycles a step whose 255 steps reach the settling time.
     pub fn new(k: f64, n: f64, dt: f64) -> Self {
+        let mut r = Self::EMPTY;
+        r.fill(k, n, dt);
+        r
+    }
+
+    /// Makes this the table of `new(k, n, dt)`, in place (the tables are 2 KiB: the
+    /// board's control interrupt must not build one on its stack and move it).
+    pub fn fill(&mut self, k: f64, n: f64, dt: f64) {
         let settle = Syringe::settle_time(k, n);
         let cycles_per_step =
             libm::ceil(settle / dt / (RESPONSE_POINTS - 1) as f64).clamp(1.0, 1e6) as u32;
         let step = cycles_per_step as f64 * dt;
-        let mut f = [R::ZERO; RESPONSE_POINTS];
-        for (i, v) in f.iter_mut().enumerate() {
+        for (i, v) in self.f.iter_mut().enumerate() {
             *v = R::of(Syringe::response(k, n, i as f64 * step));
         }
-        f[RESPONSE_POINTS - 1] = R::ONE;
+        self.f[RESPONSE_POINTS - 1] = R::ONE;
         // H by Simpson's rule on 64 sub-intervals per table step, from the end backwards.
-        let mut h = [R::ZERO; RESPONSE_POINTS];
+        self.h[RESPONSE_POINTS - 1] = R::ZERO;
         let mut acc = 0.0f64;
         let sub = 64;
         for i in (0..RESPONSE_POINTS - 1).rev() {
@@ -56,16 +73,12 @@ impl<R: Real> Response<R> {
                 sum += g(a + j as f64 * hh) * if j % 2 == 1 { 4.0 } else { 2.0 };
             }
             acc += sum * hh / 3.0;
-            h[i] = R::of(acc);
+            self.h[i] = R::of(acc);
         }
         let half_steps = 2 * cycles_per_step;
-        Response {
-            half_steps,
-            end_half: half_steps as u64 * (RESPONSE_POINTS - 1) as u64,
-            inv_half_steps: R::of(1.0 / half_steps as f64),
-            f,
-            h,
-        }
+        self.half_steps = half_steps;
+        self.end_half = half_steps as u64 * (RESPONSE_POINTS - 1) as u64;
+        self.inv_half_steps = R::of(1.0 / half_steps as f64);
     }
 
     /// Table entry and fraction `half_cycles` half cycles after a change; `None` once
@@ -128,16 +141,18 @@ pub struct Plunger<R> {
 
 impl<R: Real> Default for Plunger<R> {
     fn default() -> Self {
-        Plunger {
-            base: R::ZERO,
-            events: [(0, R::ZERO); EVENTS],
-            len: 0,
-            running: false,
-        }
+        Self::IDLE
     }
 }
 
 impl<R: Real> Plunger<R> {
+    /// At rest: no outflow, nothing settling.
+    pub const IDLE: Self = Plunger {
+        base: R::ZERO,
+        events: [(0, R::ZERO); EVENTS],
+        len: 0,
+        running: false,
+    };
     /// Starts or stops the plunger (at `rate`) from cycle `at` on.
     pub fn command(&mut self, run: bool, at: u64, rate: R) {
         if run == self.running {

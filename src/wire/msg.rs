@@ -328,20 +328,23 @@ pub struct Settings {
 }
 
 impl Default for Settings {
-    /// Pause on link loss; Z homes up to its maximum first (away from the plate), then X
-    /// and Y to their minimum, at 10 mm/s, backing off 2 mm.
     fn default() -> Self {
-        Settings {
-            on_link_loss: LinkLossPolicy::Pause,
-            home_order: [Axis::Z, Axis::X, Axis::Y],
-            home_to_max: [false, false, true],
-            home_speed_mm_s: 10.0,
-            home_backoff_mm: 2.0,
-        }
+        Self::DEFAULT
     }
 }
 
 impl Settings {
+    /// Pause on link loss; Z homes up to its maximum first (away from the plate), then X
+    /// and Y to their minimum, at 10 mm/s, backing off 2 mm. A constant, so the board's
+    /// control state can be built at compile time.
+    pub const DEFAULT: Settings = Settings {
+        on_link_loss: LinkLossPolicy::Pause,
+        home_order: [Axis::Z, Axis::X, Axis::Y],
+        home_to_max: [false, false, true],
+        home_speed_mm_s: 10.0,
+        home_backoff_mm: 2.0,
+    };
+
     /// Checks the values; the error names the field.
     pub fn check(&self) -> Result<(), Text> {
         let mut seen = [false; 3];
@@ -563,6 +566,14 @@ pub enum Refusal {
     EStopActive,
     /// The job store failed.
     Store(StoreError),
+    /// Hand moves are for X, Y and Z; syringe plungers move only in a job.
+    NotJoggable {
+        /// The axis asked for.
+        axis: Axis,
+    },
+    /// An upload is preparing or writing the job store, which stalls the chip on flash
+    /// boards: nothing may move or open until it is done.
+    Uploading,
 }
 
 impl fmt::Display for Refusal {
@@ -624,6 +635,14 @@ impl fmt::Display for Refusal {
             Refusal::Halted(h) => write!(f, "the board is halted ({h}); clear the fault first"),
             Refusal::EStopActive => write!(f, "the emergency stop input is still active; release it"),
             Refusal::Store(e) => write!(f, "{e}"),
+            Refusal::NotJoggable { axis } => write!(
+                f,
+                "{axis:?} cannot be jogged: hand moves are for X, Y and Z (syringe plungers move in a job)"
+            ),
+            Refusal::Uploading => write!(
+                f,
+                "a job upload is writing the board's job store; wait for it to finish (dollop status) or abort it"
+            ),
         }
     }
 }

@@ -11,10 +11,12 @@ use dollop::{Command, Config};
 pub type Board = SimBoard<RamStore<Vec<u8>>>;
 
 pub fn config() -> Config {
-    let path = format!(
-        "{}/configs/seed-paper-valves.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
+    config_file("seed-paper-valves.toml")
+}
+
+/// One of the bundled machine configs (`configs/NAME`).
+pub fn config_file(name: &str) -> Config {
+    let path = format!("{}/configs/{name}", env!("CARGO_MANIFEST_DIR"));
     toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
@@ -243,9 +245,13 @@ impl Host {
 
     /// A configured, homed board holding a checked job.
     pub fn ready(b: &mut Board, rows: i32) -> Host {
+        Host::ready_with(b, config(), rows)
+    }
+
+    /// A board configured with `cfg`, homed, holding a checked job.
+    pub fn ready_with(b: &mut Board, cfg: Config, rows: i32) -> Host {
         let mut h = Host::default();
         h.hello(b);
-        let cfg = config();
         h.ok(b, &Request::LoadConfig(cfg.clone()));
         b.advance(1000);
         let (hd, body) = small_job(&cfg, rows);

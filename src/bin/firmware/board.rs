@@ -98,8 +98,10 @@ pub const STEPPED_AXES: usize = 3 + VALVES.len();
 /// Step generator tick: every STEP edge falls on one. A pulse is one tick high and at
 /// least one low, so 100 kHz gives 50 kHz per axis, and 10 us covers every driver above.
 pub const STEP_TICK_HZ: u32 = 100_000;
-/// Step generator ticks per control period (10 kHz control loop).
+/// Step generator ticks per control period.
 pub const TICKS_PER_PERIOD: u32 = 10;
+/// The control loop's rate, Hz: the link refuses configs that ask for another.
+pub const CONTROL_HZ: u32 = STEP_TICK_HZ / TICKS_PER_PERIOD;
 /// Most pulses per axis in one control period: ticks 1, 3, 5, 7, 9 (tick 0 sets DIR).
 pub const PULSES_PER_PERIOD: u32 = TICKS_PER_PERIOD / 2;
 /// Highest step rate per axis, steps/s.
@@ -108,6 +110,9 @@ const TICK_NS: u32 = 1_000_000_000 / STEP_TICK_HZ;
 const _: () = assert!(TICK_NS >= DRIVER.min_high_ns);
 const _: () = assert!(TICK_NS >= DRIVER.min_low_ns);
 const _: () = assert!(TICK_NS >= DRIVER.dir_setup_ns);
+
+/// Core clock, Hz (`clocks` below).
+pub const CORE_HZ: u32 = 168_000_000;
 
 /// Clocks: 168 MHz from the 8 MHz crystal; 48 MHz for USB from the same PLL.
 pub fn clocks() -> embassy_stm32::Config {
@@ -147,6 +152,17 @@ pub fn write(p: RawPin, high: bool) {
         } else {
             w.set_br(p.pin as usize, true)
         }
+    });
+}
+
+/// Turns on the flash accelerator (ART: prefetch, instruction and data caches). embassy
+/// sets only the wait states; without this, code runs from flash at 5 wait states,
+/// uncached, several times slower than the control loop's instruction counts suggest.
+pub fn flash_accelerator_on() {
+    pac::FLASH.acr().modify(|w| {
+        w.set_prften(true);
+        w.set_icen(true);
+        w.set_dcen(true);
     });
 }
 
@@ -201,6 +217,8 @@ pub struct Parts {
     pub endstops: [Input<'static>; 3],
     /// E-stop (high = stop).
     pub estop: Input<'static>,
+    /// Status LED (high = on), off.
+    pub led: Output<'static>,
     /// Step tick timer.
     pub step_timer: Peri<'static, TIM3>,
     /// USB OTG FS and its pins (D+, D-).
@@ -247,6 +265,7 @@ pub fn parts(p: Peripherals) -> Parts {
             Input::new(p.PC2, Pull::Up),
         ],
         estop: Input::new(p.PC13, Pull::Up),
+        led: Output::new(p.PA5, Level::Low, Speed::Low),
         step_timer: p.TIM3,
         usb: (p.USB_OTG_FS, p.PA12, p.PA11),
         flash: Flash::new_blocking(p.FLASH),

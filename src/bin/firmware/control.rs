@@ -1,15 +1,29 @@
 //! The control loop's context on the chip: `dollop::device::Control` with its pins.
 //! Runs in a software interrupt that the step timer pends every 100 us; it never waits.
+//! Also the e-stop's latch, the status LED and the link's millisecond.
 
 use crate::shared::ControlEnd;
-use crate::{step, wdg};
-use core::sync::atomic::{AtomicBool, Ordering};
-use dollop::device::{Control, Inputs};
+use crate::{board, host, step, wdg};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use dollop::device::{Control, EStopGuard, Inputs};
+use dollop::wire::Mode;
 use dollop::{Axis, Outputs};
 use embassy_stm32::gpio::{Input, Output};
 
-/// Set by the e-stop interrupt; the next control tick halts on it.
+/// Set by the e-stop interrupt after it forced the safe state; the control loop's outputs
+/// read it after every opening write (so a tick it preempted cannot reopen a valve), and
+/// the next tick halts on it.
 pub static ESTOP_LATCH: AtomicBool = AtomicBool::new(false);
+
+/// Control periods run since start (the emulator harness reads it to check the rate).
+pub static PERIODS: AtomicU32 = AtomicU32::new(0);
+
+/// The e-stop interrupt's work: straight to the safe state through the registers, then
+/// the latch.
+pub fn estop_tripped() {
+    board::force_safe_raw();
+    ESTOP_LATCH.store(true, Ordering::Release);
+}
 
 /// Valves and drivers on pins; steps go to the step generator.
 pub struct PinOutputs {
@@ -41,42 +55,56 @@ impl Outputs for PinOutputs {
     }
 }
 
+/// Control periods per status LED half-blink: 1 Hz when all is well, 5 Hz when halted.
+const BLINK_SLOW: u32 = board::CONTROL_HZ / 2;
+const BLINK_FAST: u32 = board::CONTROL_HZ / 10;
+/// Control periods per link millisecond.
+const PERIODS_PER_MS: u32 = board::CONTROL_HZ / 1000;
+
 /// Everything the control interrupt owns.
 pub struct ControlCtx {
-    /// The board-independent loop.
-    pub control: Control,
+    /// The board-independent loop (in a static of its own).
+    pub control: &'static mut Control,
     /// Its outputs.
     pub out: PinOutputs,
     /// Endstops X, Y, Z (low = triggered).
     pub endstops: [Input<'static>; 3],
     /// E-stop input (high = stop).
     pub estop: Input<'static>,
+    /// Status LED (high = on).
+    pub led: Output<'static>,
     last_ticks: u32,
     now_us: u64,
+    periods: u32,
+    blink: u32,
 }
 
 impl ControlCtx {
     /// The context; the outputs are already safe.
     pub fn new(
-        control: Control,
+        control: &'static mut Control,
         out: PinOutputs,
         endstops: [Input<'static>; 3],
         estop: Input<'static>,
+        led: Output<'static>,
     ) -> Self {
         ControlCtx {
             control,
             out,
             endstops,
             estop,
+            led,
             last_ticks: step::TICKS.load(Ordering::Acquire),
             now_us: 0,
+            periods: 0,
+            blink: 0,
         }
     }
 
     /// One control period.
     pub fn on_period(&mut self) {
         let t = step::TICKS.load(Ordering::Acquire);
-        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * 10;
+        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * step::TICK_US;
         self.last_ticks = t;
         let inputs = Inputs {
             estop: ESTOP_LATCH.swap(false, Ordering::AcqRel) || self.estop.is_high(),
@@ -86,11 +114,26 @@ impl ControlCtx {
                 self.endstops[2].is_low(),
             ],
         };
+        let mut out = EStopGuard {
+            out: &mut self.out,
+            latch: &ESTOP_LATCH,
+        };
         let tick = self
             .control
-            .tick(self.now_us, inputs, &mut ControlEnd, &mut self.out);
+            .tick(self.now_us, inputs, &mut ControlEnd, &mut out);
         if tick.feed_watchdog {
             wdg::feed();
+        }
+        PERIODS.fetch_add(1, Ordering::Relaxed);
+        self.periods = self.periods.wrapping_add(1);
+        if self.periods % PERIODS_PER_MS == 0 {
+            host::millisecond();
+        }
+        self.blink += 1;
+        let halted = self.control.mode() == Mode::Halted;
+        if self.blink >= if halted { BLINK_FAST } else { BLINK_SLOW } {
+            self.blink = 0;
+            self.led.toggle();
         }
     }
 }

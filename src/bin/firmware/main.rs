@@ -3,20 +3,22 @@
 //! state through registers), step pulses (TIM3, 100 kHz), the control loop (UART5 used as
 //! a software interrupt, pended every 10th step tick), then USB and the thread-mode
 //! executor that runs the link. The control loop and the link share only `shared`'s
-//! queues and snapshot. Pins and clocks come from `board`.
+//! queues and snapshot. Pins and clocks come from `board`. The big state (control loop,
+//! link) lives in statics built at compile time: nothing large is ever on the stack.
 #![no_std]
 #![no_main]
 
 mod board;
 mod control;
+mod faults;
+mod host;
 mod shared;
 mod step;
 mod store;
 mod wdg;
 
-use control::{ControlCtx, PinOutputs, ESTOP_LATCH};
+use control::{ControlCtx, PinOutputs};
 use core::cell::RefCell;
-use core::sync::atomic::Ordering;
 use defmt_rtt as _;
 use dollop::device::{BoardInfo, Control, Link, ResetCause};
 use dollop::wire;
@@ -29,10 +31,9 @@ use embassy_stm32::usb::Driver;
 use embassy_stm32::{bind_interrupts, interrupt, pac, usb};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use embassy_time::{with_timeout, Duration, Instant};
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::UsbDevice;
-use static_cell::StaticCell;
+use static_cell::{ConstStaticCell, StaticCell};
 use step::Stepper;
 use store::FlashStore;
 
@@ -41,6 +42,22 @@ bind_interrupts!(struct Irqs {
 });
 
 type UsbDriver = Driver<'static, USB_OTG_FS>;
+
+/// What the board tells the host about itself.
+const INFO: BoardInfo = BoardInfo {
+    name: board::NAME,
+    firmware: env!("CARGO_PKG_VERSION"),
+    max_step_hz: board::MAX_STEP_HZ as f32,
+    control_hz: board::CONTROL_HZ,
+};
+
+/// The control loop's state (42 KiB: the executor and its flow model), built by the
+/// compiler in RAM. Moving it through the stack overflowed the 64 KiB stack at boot.
+static CONTROL_STATE: ConstStaticCell<Control> =
+    ConstStaticCell::new(Control::new(ResetCause::PowerOn));
+/// The link's state (6 KiB: frame buffer, chunk window, reply queue), likewise.
+static LINK: ConstStaticCell<Link<FlashStore>> =
+    ConstStaticCell::new(Link::new(FlashStore::new(), INFO));
 
 /// Handed to the interrupts once at start (a reference: the contexts live in statics).
 static STEPPER: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Stepper>>> =
@@ -77,25 +94,7 @@ fn EXTI15_10() {
     let line = board::ESTOP.pin as usize;
     if pac::EXTI.pr(0).read().line(line) {
         pac::EXTI.pr(0).write(|w| w.set_line(line, true));
-        // Straight to the safe state through the registers; the control loop halts on the
-        // latch at its next tick.
-        board::force_safe_raw();
-        ESTOP_LATCH.store(true, Ordering::Release);
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    // Nothing else may run: no interrupt may reopen a valve.
-    cortex_m::interrupt::disable();
-    board::force_safe_raw();
-    // The location only: formatting the message would pull float formatting into flash.
-    if let Some(l) = info.location() {
-        defmt::error!("panic at {}:{}", l.file(), l.line());
-    }
-    // The watchdog is no longer fed: it resets the chip, which starts halted and says why.
-    loop {
-        cortex_m::asm::nop();
+        control::estop_tripped();
     }
 }
 
@@ -109,6 +108,7 @@ async fn main(spawner: Spawner) {
         ResetCause::PowerOn
     };
     let p = embassy_stm32::init(board::clocks());
+    board::flash_accelerator_on();
     // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
     interrupt::TIM5.set_priority(Priority::P4);
     wdg::start();
@@ -123,12 +123,19 @@ async fn main(spawner: Spawner) {
         valves: parts.valves,
         enable: parts.enable,
     };
-    let mut control = Control::new(reset);
+    let control = CONTROL_STATE.take();
+    control.set_reset_cause(reset);
     control.power_up(&mut out);
     estop_interrupt();
 
     static CTX: StaticCell<ControlCtx> = StaticCell::new();
-    let ctx = CTX.init(ControlCtx::new(control, out, parts.endstops, parts.estop));
+    let ctx = CTX.init(ControlCtx::new(
+        control,
+        out,
+        parts.endstops,
+        parts.estop,
+        parts.led,
+    ));
     CONTROL.lock(|c| *c.borrow_mut() = Some(ctx));
 
     let timer = Timer::new(parts.step_timer);
@@ -161,7 +168,8 @@ async fn main(spawner: Spawner) {
     let mut dev_config = embassy_usb::Config::new(wire::USB_VID, wire::USB_PID);
     dev_config.manufacturer = Some("dollop");
     dev_config.product = Some(wire::USB_PRODUCT);
-    dev_config.serial_number = Some(board::NAME);
+    // The chip's 96-bit unique ID: two boards on one host must be told apart.
+    dev_config.serial_number = Some(embassy_stm32::uid::uid_hex());
     dev_config.self_powered = true;
     dev_config.max_power = 100;
     dev_config.max_packet_size_0 = 64;
@@ -177,20 +185,20 @@ async fn main(spawner: Spawner) {
         &mut [],
         CONTROL_BUF.init([0; 64]),
     );
-    let class = CdcAcmClass::new(&mut builder, CDC_STATE.init(State::new()), 64);
+    let class = CdcAcmClass::new(
+        &mut builder,
+        CDC_STATE.init(State::new()),
+        dollop::device::serve::PACKET as u16,
+    );
     let usb = builder.build();
 
-    let info = BoardInfo {
-        name: board::NAME,
-        firmware: env!("CARGO_PKG_VERSION"),
-        max_step_hz: board::MAX_STEP_HZ as f32,
-    };
-    let link = Link::new(FlashStore::new(parts.flash), info);
+    let link = LINK.take();
+    link.store_mut().attach(parts.flash);
     match usb_task(usb) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("usb task did not spawn"),
     }
-    match link_task(class, link) {
+    match link_task(host::UsbPort::new(class), link) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("link task did not spawn"),
     }
@@ -212,56 +220,14 @@ async fn usb_task(mut usb: UsbDevice<'static, UsbDriver>) -> ! {
     usb.run().await
 }
 
-/// The link: USB packets in, replies out, and the link's background work at least every
-/// millisecond (it feeds the running job, so it never waits long on USB).
+/// The link over USB: `dollop::device::serve`, paced by the control loop's millisecond.
 #[embassy_executor::task]
-async fn link_task(mut class: CdcAcmClass<'static, UsbDriver>, mut link: Link<FlashStore>) -> ! {
-    let mut port = shared::LinkEnd;
-    let mut rx = [0u8; 64];
-    let mut tx = [0u8; 64];
-    let mut connected = false;
-    loop {
-        let now = Instant::now().as_micros();
-        if !connected {
-            if with_timeout(Duration::from_millis(1), class.wait_connection())
-                .await
-                .is_ok()
-                && class.dtr()
-            {
-                connected = true;
-            }
-            link.poll(now, &mut port);
-            continue;
-        }
-        match with_timeout(Duration::from_millis(1), class.read_packet(&mut rx)).await {
-            Ok(Ok(n)) => link.receive(&rx[..n], now, &mut port),
-            Ok(Err(_)) => connected = false,
-            Err(_) => {}
-        }
-        if !class.dtr() {
-            // The host closed the port.
-            connected = false;
-        }
-        if !connected {
-            link.disconnected(&mut port);
-            continue;
-        }
-        let mut last = 0;
-        loop {
-            let n = link.take_tx(&mut tx);
-            if n == 0 {
-                break;
-            }
-            last = n;
-            if class.write_packet(&tx[..n]).await.is_err() {
-                connected = false;
-                break;
-            }
-        }
-        if connected && last == tx.len() {
-            // A full last packet needs a zero-length one to end the transfer.
-            let _ = class.write_packet(&[]).await;
-        }
-        link.poll(Instant::now().as_micros(), &mut port);
-    }
+async fn link_task(mut port: host::UsbPort<UsbDriver>, link: &'static mut Link<FlashStore>) -> ! {
+    dollop::device::serve(
+        &mut port,
+        &mut host::Millis::new(),
+        link,
+        &mut shared::LinkEnd,
+    )
+    .await
 }

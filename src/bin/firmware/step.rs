@@ -13,8 +13,10 @@ use embassy_stm32::timer::low_level::Timer;
 
 /// Signed steps per axis the control loop asked for, not yet emitted.
 static PENDING: [AtomicI32; STEPPED_AXES] = [const { AtomicI32::new(0) }; STEPPED_AXES];
-/// Step ticks since start: the firmware's clock (10 us each).
+/// Step ticks since start: the firmware's clock (`TICK_US` each).
 pub static TICKS: AtomicU32 = AtomicU32::new(0);
+/// Microseconds per step tick.
+pub const TICK_US: u64 = 1_000_000 / crate::board::STEP_TICK_HZ as u64;
 
 /// Asks for `count` steps on `axis` in the next period (called by the control loop).
 pub fn request(axis: Axis, forward: bool, count: u32) {

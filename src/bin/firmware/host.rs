@@ -1,0 +1,92 @@
+//! The host link's transport and pace on the chip, for `dollop::device::serve`: USB
+//! CDC-ACM packets as the `HostPort`, and a millisecond pace counted by the control loop
+//! (not embassy-time's alarms, so the link's progress depends only on the step timer's
+//! update interrupt, which every emulator and every board has).
+
+use crate::step;
+use core::future::poll_fn;
+use core::sync::atomic::{AtomicU32, Ordering};
+use core::task::Poll;
+use dollop::device::{HostPort, Pace, PortClosed};
+use embassy_sync::waitqueue::AtomicWaker;
+use embassy_usb::class::cdc_acm::CdcAcmClass;
+use embassy_usb::driver::Driver;
+
+/// Milliseconds counted by the control loop.
+static MILLIS: AtomicU32 = AtomicU32::new(0);
+static MILLIS_WAKER: AtomicWaker = AtomicWaker::new();
+
+/// Called by the control loop once a millisecond: wakes the link.
+pub fn millisecond() {
+    MILLIS.fetch_add(1, Ordering::Release);
+    MILLIS_WAKER.wake();
+}
+
+/// The link's pace: the control loop's milliseconds, and the step clock for time.
+pub struct Millis {
+    last_ticks: u32,
+    now_us: u64,
+}
+
+impl Millis {
+    /// A pace starting now.
+    pub fn new() -> Self {
+        Millis {
+            last_ticks: step::TICKS.load(Ordering::Acquire),
+            now_us: 0,
+        }
+    }
+}
+
+impl Pace for Millis {
+    fn now_us(&mut self) -> u64 {
+        // The 32-bit tick count wraps after 11.9 h; the difference does not.
+        let t = step::TICKS.load(Ordering::Acquire);
+        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * step::TICK_US;
+        self.last_ticks = t;
+        self.now_us
+    }
+    async fn tick(&mut self) {
+        let start = MILLIS.load(Ordering::Acquire);
+        poll_fn(|cx| {
+            if MILLIS.load(Ordering::Acquire) != start {
+                return Poll::Ready(());
+            }
+            MILLIS_WAKER.register(cx.waker());
+            if MILLIS.load(Ordering::Acquire) != start {
+                Poll::Ready(())
+            } else {
+                Poll::Pending
+            }
+        })
+        .await
+    }
+}
+
+/// USB CDC-ACM as the host port.
+pub struct UsbPort<D: Driver<'static>> {
+    class: CdcAcmClass<'static, D>,
+}
+
+impl<D: Driver<'static>> UsbPort<D> {
+    /// The port on `class`.
+    pub fn new(class: CdcAcmClass<'static, D>) -> Self {
+        UsbPort { class }
+    }
+}
+
+impl<D: Driver<'static>> HostPort for UsbPort<D> {
+    fn is_open(&mut self) -> bool {
+        // DTR: a host program has the port open (cleared on bus reset and unplug).
+        self.class.dtr()
+    }
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
+        self.class.read_packet(buf).await.map_err(|_| PortClosed)
+    }
+    async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
+        self.class.write_packet(data).await.map_err(|_| PortClosed)
+    }
+    fn needs_zero_length_end(&self) -> bool {
+        true
+    }
+}

@@ -1,0 +1,252 @@
+//! The link loop (`dollop::device::serve`) on doubles of the board's USB port and
+//! millisecond pace: it yields on every path (a closed port that reports "ready" at once
+//! cannot make it spin: the USB livelock), and a host that stops reading cannot hold back
+//! the link's background work, so the link-loss policy still closes a valve test.
+
+mod device_support;
+
+use core::future::Future;
+use core::pin::pin;
+use core::task::{Context, Poll, Waker};
+use device_support::*;
+use dollop::device::serve::WRITE_TIMEOUT_TICKS;
+use dollop::device::sim::SIM_INFO;
+use dollop::device::{
+    serve, HostPort, Inputs, JobRecord, Link, Order, Pace, PortClosed, Queues, RamStore, ToControl,
+};
+use dollop::wire::*;
+use std::cell::{Cell, RefCell};
+use std::collections::VecDeque;
+use std::rc::Rc;
+
+/// What the doubles share with the test: the board, virtual time, and how many port
+/// calls happened since the loop last yielded.
+#[derive(Default)]
+struct World {
+    now_us: Cell<u64>,
+    calls_since_yield: Cell<u32>,
+    ticks: Cell<u64>,
+    incoming: RefCell<VecDeque<Vec<u8>>>,
+    sent: RefCell<Vec<u8>>,
+}
+
+impl World {
+    fn port_call(&self) {
+        let n = self.calls_since_yield.get() + 1;
+        self.calls_since_yield.set(n);
+        assert!(
+            n < 10_000,
+            "the link loop spins without yielding (livelock)"
+        );
+    }
+}
+
+struct Port {
+    w: Rc<World>,
+    open: bool,
+    /// Writes never complete: a host that stopped reading.
+    stuck: bool,
+}
+
+impl HostPort for Port {
+    fn is_open(&mut self) -> bool {
+        self.w.port_call();
+        self.open
+    }
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
+        self.w.port_call();
+        if !self.open {
+            return Err(PortClosed);
+        }
+        let w = self.w.clone();
+        core::future::poll_fn(move |_| match w.incoming.borrow_mut().pop_front() {
+            Some(p) => {
+                let n = p.len().min(buf.len());
+                buf[..n].copy_from_slice(&p[..n]);
+                Poll::Ready(Ok(n))
+            }
+            None => Poll::Pending,
+        })
+        .await
+    }
+    async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
+        self.w.port_call();
+        if self.stuck {
+            return core::future::pending().await;
+        }
+        self.w.sent.borrow_mut().extend_from_slice(data);
+        Ok(())
+    }
+    fn needs_zero_length_end(&self) -> bool {
+        true
+    }
+}
+
+/// A pace whose tick yields once, then advances virtual time by 1 ms.
+struct Millis {
+    w: Rc<World>,
+}
+
+impl Pace for Millis {
+    fn now_us(&mut self) -> u64 {
+        self.w.now_us.get()
+    }
+    async fn tick(&mut self) {
+        let mut yielded = false;
+        core::future::poll_fn(|_| {
+            if yielded {
+                Poll::Ready(())
+            } else {
+                yielded = true;
+                self.w.calls_since_yield.set(0);
+                Poll::Pending
+            }
+        })
+        .await;
+        self.w.ticks.set(self.w.ticks.get() + 1);
+    }
+}
+
+/// Polls `fut` `polls` times (a single-threaded executor with nothing else to run); runs
+/// `between` after each poll (the board's control loop in virtual time).
+fn drive<F: Future>(fut: F, polls: u32, mut between: impl FnMut()) {
+    let mut fut = pin!(fut);
+    let mut cx = Context::from_waker(Waker::noop());
+    for _ in 0..polls {
+        assert!(fut.as_mut().poll(&mut cx).is_pending());
+        between();
+    }
+}
+
+/// The link's end of the queues, shared with the control loop the test runs.
+struct LinkEnd(Rc<RefCell<Queues>>);
+
+impl ToControl for LinkEnd {
+    fn order(&mut self, o: Order) -> Result<(), Order> {
+        self.0.borrow_mut().order(o)
+    }
+    fn command(&mut self, r: JobRecord) -> Result<(), JobRecord> {
+        self.0.borrow_mut().command(r)
+    }
+    fn command_room(&self) -> usize {
+        self.0.borrow().command_room()
+    }
+    fn post_config(&mut self, c: &dollop::Config) -> bool {
+        self.0.borrow_mut().post_config(c)
+    }
+    fn snapshot(&self) -> Snapshot {
+        self.0.borrow().snapshot()
+    }
+}
+
+/// Runs the loop on a board whose link and control loop are taken from `b`, for `ms`
+/// milliseconds, the control loop ticking ten times a millisecond.
+fn serve_board(b: &mut Board, w: &Rc<World>, mut port: Port, ms: u32) {
+    let mut link = std::mem::replace(&mut b.link, Link::new(RamStore::new(Vec::new()), SIM_INFO));
+    let queues = Rc::new(RefCell::new(std::mem::take(&mut b.queues)));
+    let mut end = LinkEnd(queues.clone());
+    let mut pace = Millis { w: w.clone() };
+    w.now_us.set(b.now_us);
+    {
+        let fut = serve(&mut port, &mut pace, &mut link, &mut end);
+        let control = &mut b.control;
+        let out = &mut b.out;
+        drive(fut, ms, || {
+            for _ in 0..10 {
+                let t = w.now_us.get() + 100;
+                w.now_us.set(t);
+                control.tick(t, Inputs::default(), &mut *queues.borrow_mut(), out);
+            }
+        });
+    }
+    b.now_us = w.now_us.get();
+    b.link = link;
+    b.queues = std::mem::take(&mut *queues.borrow_mut());
+}
+
+#[test]
+fn a_closed_port_that_is_always_ready_does_not_stop_the_loop_yielding() {
+    let w = Rc::new(World::default());
+    let mut b = board();
+    serve_board(
+        &mut b,
+        &w,
+        Port {
+            w: w.clone(),
+            open: false,
+            stuck: false,
+        },
+        200,
+    );
+    // Every poll yielded (the double panics after 10 000 port calls without a yield), and
+    // each poll was one pace tick: the USB stack and the control loop get their turn.
+    assert!(w.ticks.get() >= 199, "{}", w.ticks.get());
+}
+
+#[test]
+fn an_open_idle_port_answers_requests_and_keeps_yielding() {
+    let w = Rc::new(World::default());
+    let mut b = board();
+    let h = Host::default();
+    w.incoming.borrow_mut().push_back(h.frame(
+        h.seq,
+        &Request::Hello {
+            version: PROTOCOL_VERSION,
+        },
+    ));
+    serve_board(
+        &mut b,
+        &w,
+        Port {
+            w: w.clone(),
+            open: true,
+            stuck: false,
+        },
+        50,
+    );
+    assert!(w.ticks.get() >= 49);
+    let sent = w.sent.borrow().clone();
+    let mut r = FrameReader::new();
+    let (_, ev) = r.feed(&sent[1..]);
+    let Some(dollop::wire::frame::Event::Frame(len)) = ev else {
+        panic!("no reply: {sent:?}")
+    };
+    let (_, reply) = decode::<DeviceHeader, Reply>(r.frame(len)).unwrap();
+    assert!(matches!(reply, Reply::Hello(_)), "{reply:?}");
+}
+
+#[test]
+fn a_host_that_stops_reading_cannot_keep_a_valve_test_open() {
+    let w = Rc::new(World::default());
+    let mut b = board();
+    let mut h = Host::ready(&mut b, 1);
+    h.ok(
+        &mut b,
+        &Request::Valve {
+            inlet: 0,
+            open: true,
+        },
+    );
+    b.advance(300);
+    assert_eq!(b.out.valves, 1);
+    // The host asks for its status and then reads nothing: the reply's write never ends.
+    w.incoming
+        .borrow_mut()
+        .push_back(h.frame(h.seq, &Request::Status));
+    let budget = WRITE_TIMEOUT_TICKS + 20;
+    serve_board(
+        &mut b,
+        &w,
+        Port {
+            w: w.clone(),
+            open: true,
+            stuck: true,
+        },
+        budget,
+    );
+    assert_eq!(
+        b.out.valves, 0,
+        "the valve test outlived a host that stopped reading"
+    );
+    assert!(b.link.job() != JobSlot::Empty);
+}
