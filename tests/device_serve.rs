@@ -9,7 +9,7 @@ use core::future::Future;
 use core::pin::pin;
 use core::task::{Context, Poll, Waker};
 use device_support::*;
-use dollop::device::serve::WRITE_TIMEOUT_TICKS;
+use dollop::device::serve::{EitherPort, WRITE_TIMEOUT_TICKS};
 use dollop::device::sim::SIM_INFO;
 use dollop::device::{
     serve, HostPort, Inputs, JobRecord, Link, Order, Pace, PortClosed, Queues, RamStore, ToControl,
@@ -26,8 +26,6 @@ struct World {
     now_us: Cell<u64>,
     calls_since_yield: Cell<u32>,
     ticks: Cell<u64>,
-    incoming: RefCell<VecDeque<Vec<u8>>>,
-    sent: RefCell<Vec<u8>>,
 }
 
 impl World {
@@ -41,25 +39,44 @@ impl World {
     }
 }
 
+#[derive(Default)]
+struct Wire {
+    incoming: RefCell<VecDeque<Vec<u8>>>,
+    sent: RefCell<Vec<u8>>,
+    open: Cell<bool>,
+}
+
 struct Port {
     w: Rc<World>,
-    open: bool,
+    wire: Rc<Wire>,
     /// Writes never complete: a host that stopped reading.
     stuck: bool,
+}
+
+impl Port {
+    fn new(w: &Rc<World>, open: bool, stuck: bool) -> (Port, Rc<Wire>) {
+        let wire = Rc::new(Wire::default());
+        wire.open.set(open);
+        (
+            Port {
+                w: w.clone(),
+                wire: wire.clone(),
+                stuck,
+            },
+            wire,
+        )
+    }
 }
 
 impl HostPort for Port {
     fn is_open(&mut self) -> bool {
         self.w.port_call();
-        self.open
+        self.wire.open.get()
     }
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
         self.w.port_call();
-        if !self.open {
-            return Err(PortClosed);
-        }
-        let w = self.w.clone();
-        core::future::poll_fn(move |_| match w.incoming.borrow_mut().pop_front() {
+        let wire = self.wire.clone();
+        core::future::poll_fn(move |_| match wire.incoming.borrow_mut().pop_front() {
             Some(p) => {
                 let n = p.len().min(buf.len());
                 buf[..n].copy_from_slice(&p[..n]);
@@ -74,7 +91,7 @@ impl HostPort for Port {
         if self.stuck {
             return core::future::pending().await;
         }
-        self.w.sent.borrow_mut().extend_from_slice(data);
+        self.wire.sent.borrow_mut().extend_from_slice(data);
         Ok(())
     }
     fn needs_zero_length_end(&self) -> bool {
@@ -141,7 +158,7 @@ impl ToControl for LinkEnd {
 
 /// Runs the loop on a board whose link and control loop are taken from `b`, for `ms`
 /// milliseconds, the control loop ticking ten times a millisecond.
-fn serve_board(b: &mut Board, w: &Rc<World>, mut port: Port, ms: u32) {
+fn serve_board(b: &mut Board, w: &Rc<World>, mut port: impl HostPort, ms: u32) {
     let mut link = std::mem::replace(&mut b.link, Link::new(RamStore::new(Vec::new()), SIM_INFO));
     let queues = Rc::new(RefCell::new(std::mem::take(&mut b.queues)));
     let mut end = LinkEnd(queues.clone());
@@ -168,19 +185,36 @@ fn serve_board(b: &mut Board, w: &Rc<World>, mut port: Port, ms: u32) {
 fn a_closed_port_that_is_always_ready_does_not_stop_the_loop_yielding() {
     let w = Rc::new(World::default());
     let mut b = board();
-    serve_board(
-        &mut b,
-        &w,
-        Port {
-            w: w.clone(),
-            open: false,
-            stuck: false,
-        },
-        200,
-    );
+    let (port, _) = Port::new(&w, false, false);
+    serve_board(&mut b, &w, port, 200);
     // Every poll yielded (the double panics after 10 000 port calls without a yield), and
     // each poll was one pace tick: the USB stack and the control loop get their turn.
     assert!(w.ticks.get() >= 199, "{}", w.ticks.get());
+}
+
+fn hello(h: &Host) -> Vec<u8> {
+    h.frame(
+        h.seq,
+        &Request::Hello {
+            version: PROTOCOL_VERSION,
+        },
+    )
+}
+
+/// The replies sent on `wire` so far.
+fn replies(wire: &Wire) -> Vec<Reply> {
+    let sent = wire.sent.borrow().clone();
+    let mut r = FrameReader::new();
+    let mut out = Vec::new();
+    let mut rest = &sent[..];
+    while !rest.is_empty() {
+        let (n, ev) = r.feed(rest);
+        rest = &rest[n..];
+        if let Some(dollop::wire::frame::Event::Frame(len)) = ev {
+            out.push(decode::<DeviceHeader, Reply>(r.frame(len)).unwrap().1);
+        }
+    }
+    out
 }
 
 #[test]
@@ -188,31 +222,12 @@ fn an_open_idle_port_answers_requests_and_keeps_yielding() {
     let w = Rc::new(World::default());
     let mut b = board();
     let h = Host::default();
-    w.incoming.borrow_mut().push_back(h.frame(
-        h.seq,
-        &Request::Hello {
-            version: PROTOCOL_VERSION,
-        },
-    ));
-    serve_board(
-        &mut b,
-        &w,
-        Port {
-            w: w.clone(),
-            open: true,
-            stuck: false,
-        },
-        50,
-    );
+    let (port, wire) = Port::new(&w, true, false);
+    wire.incoming.borrow_mut().push_back(hello(&h));
+    serve_board(&mut b, &w, port, 50);
     assert!(w.ticks.get() >= 49);
-    let sent = w.sent.borrow().clone();
-    let mut r = FrameReader::new();
-    let (_, ev) = r.feed(&sent[1..]);
-    let Some(dollop::wire::frame::Event::Frame(len)) = ev else {
-        panic!("no reply: {sent:?}")
-    };
-    let (_, reply) = decode::<DeviceHeader, Reply>(r.frame(len)).unwrap();
-    assert!(matches!(reply, Reply::Hello(_)), "{reply:?}");
+    let r = replies(&wire);
+    assert!(matches!(r[..], [Reply::Hello(_)]), "{r:?}");
 }
 
 #[test]
@@ -230,23 +245,62 @@ fn a_host_that_stops_reading_cannot_keep_a_valve_test_open() {
     b.advance(300);
     assert_eq!(b.out.valves, 1);
     // The host asks for its status and then reads nothing: the reply's write never ends.
-    w.incoming
+    let (port, wire) = Port::new(&w, true, true);
+    wire.incoming
         .borrow_mut()
         .push_back(h.frame(h.seq, &Request::Status));
-    let budget = WRITE_TIMEOUT_TICKS + 20;
-    serve_board(
-        &mut b,
-        &w,
-        Port {
-            w: w.clone(),
-            open: true,
-            stuck: true,
-        },
-        budget,
-    );
+    serve_board(&mut b, &w, port, WRITE_TIMEOUT_TICKS + 20);
     assert_eq!(
         b.out.valves, 0,
         "the valve test outlived a host that stopped reading"
     );
     assert!(b.link.job() != JobSlot::Empty);
+}
+
+#[test]
+fn two_ports_share_one_link_and_replies_go_where_the_request_came_from() {
+    let w = Rc::new(World::default());
+    let mut b = board();
+    // USB not open (no host), the UART always is.
+    let (usb, usb_wire) = Port::new(&w, false, false);
+    let (uart, uart_wire) = Port::new(&w, true, false);
+    let mut h = Host::default();
+    uart_wire.incoming.borrow_mut().push_back(hello(&h));
+    serve_board(&mut b, &w, EitherPort::new(usb, uart), 20);
+    assert!(matches!(replies(&uart_wire)[..], [Reply::Hello(_)]));
+    assert!(replies(&usb_wire).is_empty());
+
+    // A host opens USB and asks for the status in the same session: answered on USB.
+    h.seq += 1;
+    let (usb, usb_wire) = Port::new(&w, true, false);
+    let (uart, uart_wire) = Port::new(&w, true, false);
+    usb_wire
+        .incoming
+        .borrow_mut()
+        .push_back(h.frame(h.seq, &Request::Status));
+    serve_board(&mut b, &w, EitherPort::new(usb, uart), 20);
+    let r = replies(&usb_wire);
+    assert!(matches!(r[..], [Reply::Status(_)]), "{r:?}");
+    assert!(replies(&uart_wire).is_empty());
+}
+
+#[test]
+fn the_same_rules_hold_on_the_uart_a_silent_host_closes_a_valve_test() {
+    let w = Rc::new(World::default());
+    let mut b = board();
+    let mut h = Host::ready(&mut b, 1);
+    h.ok(
+        &mut b,
+        &Request::Valve {
+            inlet: 0,
+            open: true,
+        },
+    );
+    b.advance(300);
+    assert_eq!(b.out.valves, 1);
+    // Over the UART (always open) the host falls silent: the link's timeout applies.
+    let (usb, _) = Port::new(&w, false, false);
+    let (uart, _) = Port::new(&w, true, false);
+    serve_board(&mut b, &w, EitherPort::new(usb, uart), LINK_TIMEOUT_MS + 50);
+    assert_eq!(b.out.valves, 0, "the valve test outlived a silent host");
 }

@@ -1,7 +1,8 @@
 //! The link's main loop, independent of the transport and the executor: packets in from a
 //! `HostPort` (USB CDC-ACM, a UART), replies out, and the link's background work
 //! (`Link::poll`: store writes, job feeding, the silent-host timeout) at least once per
-//! `Pace` tick. Every path through the loop awaits the pace or the port, so it always
+//! `Pace` tick; `EitherPort` serves two transports (USB and a UART) through one link, with
+//! the same rules on either. Every path through the loop awaits the pace or the port, so it always
 //! yields to the rest of the board; every write has a deadline, so a host that stops
 //! reading cannot hold `poll` (and the link-loss policy) back. The board supplies the
 //! port and the pace; host tests drive the same loop with doubles.
@@ -119,4 +120,77 @@ async fn write_within(port: &mut impl HostPort, pace: &mut impl Pace, data: &[u8
         select(port.write(data), deadline).await,
         Either::First(Ok(()))
     )
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Side {
+    A,
+    B,
+}
+
+/// Two ports served as one: reads from whichever has bytes, replies to the one the last
+/// request came from. When that one closes, the link sees it close once (and applies its
+/// link-loss rule), then listens on both again.
+pub struct EitherPort<A: HostPort, B: HostPort> {
+    a: A,
+    b: B,
+    current: Side,
+    spare: [u8; PACKET],
+}
+
+impl<A: HostPort, B: HostPort> EitherPort<A, B> {
+    /// Both ports; replies go to `a` until a request comes from `b`.
+    pub fn new(a: A, b: B) -> Self {
+        EitherPort {
+            a,
+            b,
+            current: Side::A,
+            spare: [0; PACKET],
+        }
+    }
+}
+
+impl<A: HostPort, B: HostPort> HostPort for EitherPort<A, B> {
+    fn is_open(&mut self) -> bool {
+        let open = match self.current {
+            Side::A => self.a.is_open(),
+            Side::B => self.b.is_open(),
+        };
+        if !open {
+            // Reported closed once; from now on whichever speaks first is current.
+            self.current = if self.current == Side::A {
+                Side::B
+            } else {
+                Side::A
+            };
+        }
+        open
+    }
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
+        let spare = &mut self.spare;
+        match select(self.a.read(buf), self.b.read(spare)).await {
+            Either::First(r) => {
+                self.current = Side::A;
+                r
+            }
+            Either::Second(r) => {
+                self.current = Side::B;
+                let n = r?.min(buf.len());
+                buf[..n].copy_from_slice(&spare[..n]);
+                Ok(n)
+            }
+        }
+    }
+    async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
+        match self.current {
+            Side::A => self.a.write(data).await,
+            Side::B => self.b.write(data).await,
+        }
+    }
+    fn needs_zero_length_end(&self) -> bool {
+        match self.current {
+            Side::A => self.a.needs_zero_length_end(),
+            Side::B => self.b.needs_zero_length_end(),
+        }
+    }
 }

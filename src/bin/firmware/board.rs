@@ -7,7 +7,7 @@ use embassy_stm32::flash::Flash;
 use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::pac;
 use embassy_stm32::pac::gpio::vals::Moder;
-use embassy_stm32::peripherals::{PA11, PA12, TIM3, USB_OTG_FS};
+use embassy_stm32::peripherals::{PA11, PA12, PC10, PC11, TIM3, UART4, USB_OTG_FS};
 use embassy_stm32::rcc::{
     AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPDiv, PllPreDiv, PllQDiv, PllSource,
     Sysclk,
@@ -47,6 +47,7 @@ const fn pb(pin: u8) -> RawPin {
 // Endstops X/Y/Z (active low, internal pull-ups): PC0, PC1, PC2
 // E-stop (normally closed to ground; open = stop, pull-up): PC13 -> EXTI13
 // Status LED: PA5.  USB OTG FS: PA11 (D-), PA12 (D+), VBUS sense PA9.  HSE 8 MHz: PH0/PH1.
+// Host UART (beside USB, same protocol): UART4, TX PC10, RX PC11 (AF8), 3.3 V levels.
 
 /// Valve pins, inlet order.
 pub const VALVES: [RawPin; 4] = [pa(0), pa(1), pa(2), pa(3)];
@@ -110,6 +111,10 @@ const TICK_NS: u32 = 1_000_000_000 / STEP_TICK_HZ;
 const _: () = assert!(TICK_NS >= DRIVER.min_high_ns);
 const _: () = assert!(TICK_NS >= DRIVER.min_low_ns);
 const _: () = assert!(TICK_NS >= DRIVER.dir_setup_ns);
+
+/// Baud rate of the host UART (8 data bits, no parity, one stop bit). UART4 runs from
+/// APB1 at 42 MHz, so 1 Mbaud is an exact divisor (BRR 42, 16 times oversampling).
+pub const HOST_UART_BAUD: u32 = 1_000_000;
 
 /// Core clock, Hz (`clocks` below).
 pub const CORE_HZ: u32 = 168_000_000;
@@ -227,6 +232,12 @@ pub struct Parts {
         Peri<'static, PA12>,
         Peri<'static, PA11>,
     ),
+    /// The host UART and its pins (RX, TX).
+    pub uart: (
+        Peri<'static, UART4>,
+        Peri<'static, PC11>,
+        Peri<'static, PC10>,
+    ),
     /// Flash, for the job store.
     pub flash: Flash<'static, embassy_stm32::flash::Blocking>,
 }
@@ -268,6 +279,7 @@ pub fn parts(p: Peripherals) -> Parts {
         led: Output::new(p.PA5, Level::Low, Speed::Low),
         step_timer: p.TIM3,
         usb: (p.USB_OTG_FS, p.PA12, p.PA11),
+        uart: (p.UART4, p.PC11, p.PC10),
         flash: Flash::new_blocking(p.FLASH),
     }
 }

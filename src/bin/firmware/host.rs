@@ -1,13 +1,16 @@
-//! The host link's transport and pace on the chip, for `dollop::device::serve`: USB
-//! CDC-ACM packets as the `HostPort`, and a millisecond pace counted by the control loop
-//! (not embassy-time's alarms, so the link's progress depends only on the step timer's
-//! update interrupt, which every emulator and every board has).
+//! The host link's transports and pace on the chip, for `dollop::device::serve`: USB
+//! CDC-ACM packets and the host UART's bytes as `HostPort`s (served by one link through
+//! `dollop::device::serve::EitherPort`), and a millisecond
+//! pace counted by the control loop (not embassy-time's alarms, so the link's progress
+//! depends only on the step timer's update interrupt, which every emulator and every
+//! board has).
 
 use crate::step;
 use core::future::poll_fn;
 use core::sync::atomic::{AtomicU32, Ordering};
 use core::task::Poll;
 use dollop::device::{HostPort, Pace, PortClosed};
+use embassy_stm32::usart::BufferedUart;
 use embassy_sync::waitqueue::AtomicWaker;
 use embassy_usb::class::cdc_acm::CdcAcmClass;
 use embassy_usb::driver::Driver;
@@ -88,5 +91,37 @@ impl<D: Driver<'static>> HostPort for UsbPort<D> {
     }
     fn needs_zero_length_end(&self) -> bool {
         true
+    }
+}
+
+/// The host UART as the host port: always open (a UART has no connection state; a silent
+/// host is the link's timeout to notice).
+pub struct UartPort {
+    uart: BufferedUart<'static>,
+}
+
+impl UartPort {
+    /// The port on `uart`.
+    pub fn new(uart: BufferedUart<'static>) -> Self {
+        UartPort { uart }
+    }
+}
+
+impl HostPort for UartPort {
+    fn is_open(&mut self) -> bool {
+        true
+    }
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
+        embedded_io_async::Read::read(&mut self.uart, buf)
+            .await
+            .map_err(|_| PortClosed)
+    }
+    async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
+        embedded_io_async::Write::write_all(&mut self.uart, data)
+            .await
+            .map_err(|_| PortClosed)
+    }
+    fn needs_zero_length_end(&self) -> bool {
+        false
     }
 }

@@ -28,7 +28,7 @@ use embassy_stm32::peripherals::USB_OTG_FS;
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::usb::Driver;
-use embassy_stm32::{bind_interrupts, interrupt, pac, usb};
+use embassy_stm32::{bind_interrupts, interrupt, pac, usart, usb};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
@@ -39,6 +39,7 @@ use store::FlashStore;
 
 bind_interrupts!(struct Irqs {
     OTG_FS => usb::InterruptHandler<USB_OTG_FS>;
+    UART4 => usart::BufferedInterruptHandler<embassy_stm32::peripherals::UART4>;
 });
 
 type UsbDriver = Driver<'static, USB_OTG_FS>;
@@ -192,13 +193,40 @@ async fn main(spawner: Spawner) {
     );
     let usb = builder.build();
 
+    // The host UART: the same protocol as USB, for boards wired to a host's serial port.
+    static UART_TX: StaticCell<[u8; 1024]> = StaticCell::new();
+    static UART_RX: StaticCell<[u8; 1024]> = StaticCell::new();
+    let mut uart_config = usart::Config::default();
+    uart_config.baudrate = board::HOST_UART_BAUD;
+    let (uart, rx, tx) = parts.uart;
+    interrupt::UART4.set_priority(Priority::P5);
+    let uart = match usart::BufferedUart::new(
+        uart,
+        rx,
+        tx,
+        UART_TX.init([0; 1024]),
+        UART_RX.init([0; 1024]),
+        Irqs,
+        uart_config,
+    ) {
+        Ok(u) => u,
+        Err(_) => {
+            defmt::error!("host UART: configuration refused");
+            return;
+        }
+    };
+
     let link = LINK.take();
     link.store_mut().attach(parts.flash);
     match usb_task(usb) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("usb task did not spawn"),
     }
-    match link_task(host::UsbPort::new(class), link) {
+    let port = dollop::device::serve::EitherPort::new(
+        host::UsbPort::new(class),
+        host::UartPort::new(uart),
+    );
+    match link_task(port, link) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("link task did not spawn"),
     }
@@ -220,9 +248,13 @@ async fn usb_task(mut usb: UsbDevice<'static, UsbDriver>) -> ! {
     usb.run().await
 }
 
-/// The link over USB: `dollop::device::serve`, paced by the control loop's millisecond.
+/// The link over USB and the host UART: `dollop::device::serve`, paced by the control
+/// loop's millisecond.
 #[embassy_executor::task]
-async fn link_task(mut port: host::UsbPort<UsbDriver>, link: &'static mut Link<FlashStore>) -> ! {
+async fn link_task(
+    mut port: dollop::device::serve::EitherPort<host::UsbPort<UsbDriver>, host::UartPort>,
+    link: &'static mut Link<FlashStore>,
+) -> ! {
     dollop::device::serve(
         &mut port,
         &mut host::Millis::new(),

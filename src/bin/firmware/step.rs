@@ -38,6 +38,10 @@ pub struct Stepper {
     pub dir: [Output<'static>; STEPPED_AXES],
     pattern: [u8; STEPPED_AXES],
     phase: u32,
+    /// STEP pins now high, bit per axis: only those are written low again.
+    high: u8,
+    /// DIR pins now high (forward), bit per axis: a DIR pin is written only to change it.
+    forward: u8,
 }
 
 impl Stepper {
@@ -53,6 +57,9 @@ impl Stepper {
             dir,
             pattern: [0; STEPPED_AXES],
             phase: 0,
+            high: 0,
+            // Reset levels: every pin starts low (`board::parts`).
+            forward: 0,
         }
     }
 
@@ -63,13 +70,12 @@ impl Stepper {
         let phase = self.phase;
         self.phase = (phase + 1) % TICKS_PER_PERIOD;
         if phase == 0 {
+            self.all_low();
             let axes = PENDING
                 .iter()
-                .zip(self.step.iter_mut())
                 .zip(self.dir.iter_mut())
                 .zip(self.pattern.iter_mut());
-            for (((pending, step), dir), pattern) in axes {
-                step.set_low();
+            for (i, ((pending, dir), pattern)) in axes.enumerate() {
                 let want = pending.swap(0, Ordering::AcqRel);
                 let max = PULSES_PER_PERIOD as i32;
                 let now = want.clamp(-max, max);
@@ -77,28 +83,44 @@ impl Stepper {
                     // More than a period holds (a late control tick): the rest next period.
                     pending.fetch_add(want - now, Ordering::AcqRel);
                 }
-                if now > 0 {
+                let bit = 1u8 << i;
+                if now > 0 && self.forward & bit == 0 {
                     dir.set_high();
-                } else if now < 0 {
+                    self.forward |= bit;
+                } else if now < 0 && self.forward & bit != 0 {
                     dir.set_low();
+                    self.forward &= !bit;
                 }
                 *pattern = spread(now.unsigned_abs());
             }
             true
         } else if phase % 2 == 1 {
             let slot = (phase - 1) / 2;
-            for (step, pattern) in self.step.iter_mut().zip(self.pattern.iter()) {
+            for (i, (step, pattern)) in self.step.iter_mut().zip(self.pattern.iter()).enumerate() {
                 if pattern & (1 << slot) != 0 {
                     step.set_high();
+                    self.high |= 1 << i;
                 }
             }
             false
         } else {
-            for s in self.step.iter_mut() {
-                s.set_low();
-            }
+            self.all_low();
             false
         }
+    }
+
+    /// Ends the pulses that are high (only those pins are written: fewer bus writes in
+    /// the highest-rate interrupt, and a pin log that shows only real edges).
+    fn all_low(&mut self) {
+        if self.high == 0 {
+            return;
+        }
+        for (i, s) in self.step.iter_mut().enumerate() {
+            if self.high & (1 << i) != 0 {
+                s.set_low();
+            }
+        }
+        self.high = 0;
     }
 }
 
