@@ -17,7 +17,9 @@ use std::time::{Duration, Instant};
 /// Serial port selection.
 #[derive(clap::Args, Debug)]
 pub struct PortArgs {
-    /// Serial port of the board (default: auto-detect by USB VID/PID).
+    /// The board's port: a serial device (its USB port, or a host serial port wired to the
+    /// board's UART, 1 Mbaud), or tcp:HOST:PORT (an emulated board, a serial server).
+    /// Default: the USB board found by its VID/PID.
     #[arg(long)]
     pub port: Option<String>,
 }

@@ -1,11 +1,59 @@
-//! The USB CDC-ACM transport: a `serialport` port found by the board's USB VID/PID (or
-//! named by the user), with timeouts, and reopening after the board re-enumerates.
+//! The board's byte transports: a serial port (USB CDC-ACM found by the board's VID/PID, or
+//! named by the user: the USB port, or a host serial port wired to the board's UART at
+//! `UART_BAUD`), or a TCP socket (`tcp:HOST:PORT`: an emulated board's UART, a serial
+//! server); with timeouts, and reopening after the board re-enumerates or reconnects.
 
 use super::transport::{LinkError, Transport};
 use dollop::wire::{USB_PID, USB_PRODUCT, USB_VID};
 use serialport::{SerialPort, SerialPortType};
 use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
+
+/// Baud rate of the board's host UART (the firmware's `board::HOST_UART_BAUD`); USB
+/// CDC-ACM ignores it.
+pub const UART_BAUD: u32 = 1_000_000;
+/// The `--port` prefix of a TCP connection.
+const TCP_PREFIX: &str = "tcp:";
+
+/// An open connection to the board.
+enum Port {
+    Serial(Box<dyn SerialPort>),
+    Tcp(TcpStream),
+}
+
+impl Port {
+    fn set_timeout(&mut self, t: Duration) -> std::io::Result<()> {
+        match self {
+            Port::Serial(p) => p.set_timeout(t).map_err(std::io::Error::from),
+            Port::Tcp(s) => s.set_read_timeout(Some(t)),
+        }
+    }
+}
+
+impl Read for Port {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self {
+            Port::Serial(p) => p.read(buf),
+            Port::Tcp(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Port {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Port::Serial(p) => p.write(buf),
+            Port::Tcp(s) => s.write(buf),
+        }
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Port::Serial(p) => p.flush(),
+            Port::Tcp(s) => s.flush(),
+        }
+    }
+}
 
 /// How long a reconnect waits for the board to come back.
 const REOPEN_WAIT: Duration = Duration::from_secs(10);
@@ -48,12 +96,37 @@ pub fn detect() -> Result<String, LinkError> {
     }
 }
 
-/// A serial-port transport.
+/// Connects to `HOST:PORT` (the part of `--port tcp:HOST:PORT` after the prefix).
+fn open_tcp(addr: &str) -> Result<TcpStream, LinkError> {
+    let bad = |why: String| {
+        LinkError::Port(format!(
+            "cannot connect to {TCP_PREFIX}{addr}: {why} (the form is {TCP_PREFIX}HOST:PORT, e.g. {TCP_PREFIX}127.0.0.1:4444)"
+        ))
+    };
+    let addrs: Vec<_> = addr
+        .to_socket_addrs()
+        .map_err(|e| bad(e.to_string()))?
+        .collect();
+    let mut last = None;
+    for a in addrs {
+        match TcpStream::connect_timeout(&a, Duration::from_secs(5)) {
+            Ok(s) => {
+                // Frames are small and latency-bound: no Nagle delay.
+                let _ = s.set_nodelay(true);
+                return Ok(s);
+            }
+            Err(e) => last = Some(e),
+        }
+    }
+    Err(bad(last.map_or("no address".into(), |e| e.to_string())))
+}
+
+/// A serial-port or TCP transport.
 pub struct SerialLink {
     path: String,
     /// Found by VID/PID: after a reconnect look again (the OS may rename it).
     detected: bool,
-    port: Option<Box<dyn SerialPort>>,
+    port: Option<Port>,
     start: Instant,
 }
 
@@ -79,14 +152,18 @@ impl SerialLink {
         &self.path
     }
 
-    fn open_port(&self) -> Result<Box<dyn SerialPort>, LinkError> {
-        // CDC-ACM ignores the baud rate; DTR tells the board a host is there.
-        let mut p = serialport::new(&self.path, 115_200)
+    fn open_port(&self) -> Result<Port, LinkError> {
+        if let Some(addr) = self.path.strip_prefix(TCP_PREFIX) {
+            return open_tcp(addr).map(Port::Tcp);
+        }
+        // CDC-ACM ignores the baud rate, the board's UART runs at this one; DTR tells the
+        // board a USB host is there.
+        let mut p = serialport::new(&self.path, UART_BAUD)
             .timeout(Duration::from_millis(50))
             .open()
             .map_err(|e| LinkError::Port(format!("cannot open {}: {e}", self.path)))?;
         let _ = p.write_data_terminal_ready(true);
-        Ok(p)
+        Ok(Port::Serial(p))
     }
 
     fn lost(&mut self, e: std::io::Error) -> LinkError {
