@@ -201,6 +201,22 @@ fn hello(h: &Host) -> Vec<u8> {
     )
 }
 
+/// A ready board in a valve test with valve 0 open, and its host.
+fn valve_test_open() -> (Board, Host) {
+    let mut b = board();
+    let mut h = Host::ready(&mut b, 1);
+    h.ok(
+        &mut b,
+        &Request::Valve {
+            inlet: 0,
+            open: true,
+        },
+    );
+    b.advance(300);
+    assert_eq!(b.out.valves, 1);
+    (b, h)
+}
+
 /// The replies sent on `wire` so far.
 fn replies(wire: &Wire) -> Vec<Reply> {
     let sent = wire.sent.borrow().clone();
@@ -233,17 +249,7 @@ fn an_open_idle_port_answers_requests_and_keeps_yielding() {
 #[test]
 fn a_host_that_stops_reading_cannot_keep_a_valve_test_open() {
     let w = Rc::new(World::default());
-    let mut b = board();
-    let mut h = Host::ready(&mut b, 1);
-    h.ok(
-        &mut b,
-        &Request::Valve {
-            inlet: 0,
-            open: true,
-        },
-    );
-    b.advance(300);
-    assert_eq!(b.out.valves, 1);
+    let (mut b, h) = valve_test_open();
     // The host asks for its status and then reads nothing: the reply's write never ends.
     let (port, wire) = Port::new(&w, true, true);
     wire.incoming
@@ -287,17 +293,7 @@ fn two_ports_share_one_link_and_replies_go_where_the_request_came_from() {
 #[test]
 fn the_same_rules_hold_on_the_uart_a_silent_host_closes_a_valve_test() {
     let w = Rc::new(World::default());
-    let mut b = board();
-    let mut h = Host::ready(&mut b, 1);
-    h.ok(
-        &mut b,
-        &Request::Valve {
-            inlet: 0,
-            open: true,
-        },
-    );
-    b.advance(300);
-    assert_eq!(b.out.valves, 1);
+    let (mut b, _host) = valve_test_open();
     // Over the UART (always open) the host falls silent: the link's timeout applies.
     let (usb, _) = Port::new(&w, false, false);
     let (uart, _) = Port::new(&w, true, false);
