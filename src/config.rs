@@ -840,6 +840,15 @@ impl Config {
         if self.inlets.iter().all(|x| x.syringe.is_some()) {
             // Syringes push volume: during a switch the stopping syringe's outflow
             // decays while the starting one's rises; their sum bounds the speed.
+            // The curves in single precision: the board validates in thread mode on an FPU
+            // without doubles, where 16 000 double `pow`s took it seconds.
+            let response = |k: f64, n: f64, t: f64| -> f64 {
+                if t <= 0.0 {
+                    0.0
+                } else {
+                    1.0 - libm::expf(-(k as f32) * libm::powf(t as f32, n as f32)) as f64
+                }
+            };
             let rate = print_speed * s;
             for (i, a) in self.inlets.iter().enumerate() {
                 for (j, b) in self.inlets.iter().enumerate() {
@@ -851,8 +860,7 @@ impl Config {
                     let t_end = Syringe::settle_time(ka, na).max(Syringe::settle_time(kb, nb));
                     for step in 0..=4000 {
                         let t = t_end * step as f64 / 4000.0;
-                        let total =
-                            1.0 - Syringe::response(ka, na, t) + Syringe::response(kb, nb, t);
+                        let total = 1.0 - response(ka, na, t) + response(kb, nb, t);
                         let v = rate * total / s;
                         if v > v_flow_max {
                             v_flow_max = v;

@@ -533,7 +533,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             *p = um(head_um[a]);
         }
         self.check_limits(pos)?;
-        self.model.reset(&self.machine, initial_material);
+        // The machine is the same: keep its tables, restart the state only.
+        self.model.restart(&self.machine, initial_material);
         self.steps = StepGen::new(
             self.machine.motion.steps_per_mm,
             self.machine.motion.max_steps_per_cycle,
@@ -607,20 +608,27 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.safe_state(Fault::InvalidConfig, out);
                 Err(LoadError::Invalid(e))
             }
-            Ok(_) if self.busy() => Err(LoadError::Busy),
-            Ok(m) => {
-                let position = self.steps.position();
-                let last_now = self.last_now;
-                self.configure(m);
-                self.steps = StepGen::new(
-                    self.machine.motion.steps_per_mm,
-                    self.machine.motion.max_steps_per_cycle,
-                    position,
-                );
-                self.last_now = last_now;
-                Ok(())
-            }
+            Ok(m) => self.load_machine(m),
         }
+    }
+
+    /// Loads an already validated machine between jobs, in place (the board validates a
+    /// config in thread mode and hands the machine to its control interrupt). While a job
+    /// runs it is refused and nothing changes.
+    pub fn load_machine(&mut self, m: Machine<R, N>) -> Result<(), LoadError> {
+        if self.busy() {
+            return Err(LoadError::Busy);
+        }
+        let position = self.steps.position();
+        let last_now = self.last_now;
+        self.configure(m);
+        self.steps = StepGen::new(
+            self.machine.motion.steps_per_mm,
+            self.machine.motion.max_steps_per_cycle,
+            position,
+        );
+        self.last_now = last_now;
+        Ok(())
     }
 
     /// True while a job is under way (printing, moving, settling, dwelling or paused).

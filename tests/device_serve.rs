@@ -148,7 +148,7 @@ impl ToControl for LinkEnd {
     fn command_room(&self) -> usize {
         self.0.borrow().command_room()
     }
-    fn post_config(&mut self, c: &dollop::Config) -> bool {
+    fn post_config(&mut self, c: &dollop::device::BoardMachine) -> bool {
         self.0.borrow_mut().post_config(c)
     }
     fn snapshot(&self) -> Snapshot {

@@ -4,7 +4,7 @@
 //! the outputs to the safe state. Timers, pins and the watchdog itself are the board's.
 
 use super::safety::{force_safe, Commanded, Tracked};
-use super::{FromLink, Order, LEAD_IN};
+use super::{BoardMachine, FromLink, Order, LEAD_IN};
 use crate::command::Command;
 use crate::config::Config;
 use crate::executor::{Executor, Fault, Report, RunState};
@@ -172,27 +172,36 @@ impl Control {
     /// Loads a config directly (boards with a built-in config; the link uses the
     /// mailbox). Refused while anything moves.
     pub fn load_config(&mut self, config: &Config, out: &mut impl Outputs) -> Result<(), Halt> {
+        match config.validate::<f32, { crate::DEFAULT_INLETS }>() {
+            Ok(m) => {
+                self.load_machine(m);
+                Ok(())
+            }
+            Err(_) if !self.exec.loaded => {
+                // Nothing was configured, so nothing is wrong with the machine: just refused.
+                Err(Halt::Fault(Fault::InvalidConfig))
+            }
+            Err(_) => {
+                // The machine it was told about is wrong: safe state until cleared.
+                let h = Halt::Fault(Fault::InvalidConfig);
+                self.halt_with(h, out);
+                Err(h)
+            }
+        }
+    }
+
+    /// Loads a validated machine (what the link hands over: it validates in thread mode,
+    /// so the control interrupt only fills the model's tables, in place). Ignored while
+    /// anything moves.
+    pub fn load_machine(&mut self, machine: BoardMachine) {
         if !matches!(self.active, Active::Idle | Active::Halted) {
-            return Ok(());
+            return;
         }
-        let mut t = Tracked {
-            out,
-            state: &mut self.cmd,
-        };
-        if !self.exec.loaded && config.validate::<f32, { crate::DEFAULT_INLETS }>().is_err() {
-            // Nothing was configured, so nothing is wrong with the machine: just refused.
-            return Err(Halt::Fault(Fault::InvalidConfig));
+        if self.exec.exec.load_machine(machine).is_ok() {
+            self.exec.loaded = true;
+            // New steps per mm or limits: the old position means nothing.
+            self.homed = false;
         }
-        // In place: the executor lives wherever this `Control` does (a static on the board).
-        if self.exec.exec.load_config(config, &mut t).is_err() {
-            let h = Halt::Fault(Fault::InvalidConfig);
-            self.halt_with(h, out);
-            return Err(h);
-        }
-        self.exec.loaded = true;
-        // New steps per mm or limits: the old position means nothing.
-        self.homed = false;
-        Ok(())
     }
 
     /// What the loop is doing (the snapshot's `mode`, without the rest of it).
@@ -276,8 +285,8 @@ impl Control {
         if inputs.estop && self.halt != Some(Halt::Fault(Fault::EStop)) {
             self.halt_with(Halt::Fault(Fault::EStop), out);
         }
-        if let Some(config) = link.take_config() {
-            let _ = self.load_config(&config, out);
+        if let Some(machine) = link.take_config() {
+            self.load_machine(machine);
         }
         for _ in 0..ORDERS_PER_TICK {
             let Some(order) = link.next_order() else {

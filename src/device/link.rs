@@ -554,15 +554,18 @@ impl<S: JobStore> Core<S> {
                 if let Some(r) = self.snapshot_busy(port) {
                     return Err(r);
                 }
-                if let Err(e) = c.validate::<f32, { crate::DEFAULT_INLETS }>() {
-                    // The field and the kind of problem, without numbers: formatting floats
-                    // costs the chip 15 KiB of flash, and the host names the values.
-                    return Err(Refusal::Config(text(format_args!(
-                        "{}: {}",
-                        e.field,
-                        problem_name(&e.problem)
-                    ))));
-                }
+                let machine = match c.validate::<f32, { crate::DEFAULT_INLETS }>() {
+                    Ok(m) => m,
+                    Err(e) => {
+                        // The field and the kind of problem, without numbers: formatting floats
+                        // costs the chip 15 KiB of flash, and the host names the values.
+                        return Err(Refusal::Config(text(format_args!(
+                            "{}: {}",
+                            e.field,
+                            problem_name(&e.problem)
+                        ))));
+                    }
+                };
                 if c.motion.max_step_rate_hz.is_nan()
                     || c.motion.max_step_rate_hz > self.info.max_step_hz
                 {
@@ -577,7 +580,7 @@ impl<S: JobStore> Core<S> {
                         self.info.control_hz
                     ))));
                 }
-                if !port.post_config(&c) {
+                if !port.post_config(&machine) {
                     return Err(Refusal::QueueFull);
                 }
                 order(port, Order::LoadConfig)?;

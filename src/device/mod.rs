@@ -20,9 +20,13 @@ pub use sim::{Queues, SimBoard};
 pub use store::{JobStore, RamStore};
 
 use crate::command::Command;
-use crate::config::Config;
+use crate::config::Machine;
 use crate::outputs::Axis;
 use crate::wire::{LinkLossPolicy, Settings, Snapshot};
+
+/// The machine the board runs: f32 (the M4's FPU), four inlets. The link validates a
+/// config into one in thread mode; the control loop only loads it.
+pub type BoardMachine = Machine<f32, { crate::DEFAULT_INLETS }>;
 
 /// Orders in the control queue it holds (an order is answered before the next one is
 /// taken, so a handful covers every burst the link makes).
@@ -76,7 +80,7 @@ pub enum Order {
     LinkLost(LinkLossPolicy),
     /// New board settings.
     Settings(Settings),
-    /// A config waits in the mailbox.
+    /// A validated machine waits in the mailbox.
     LoadConfig,
 }
 
@@ -97,8 +101,9 @@ pub trait ToControl {
     fn command(&mut self, record: JobRecord) -> Result<(), JobRecord>;
     /// Free places in the job queue.
     fn command_room(&self) -> usize;
-    /// Puts a config in the mailbox; false if the previous one was not taken yet.
-    fn post_config(&mut self, config: &Config) -> bool;
+    /// Puts a validated machine in the mailbox; false if the previous one was not taken
+    /// yet.
+    fn post_config(&mut self, machine: &BoardMachine) -> bool;
     /// The control loop's latest snapshot.
     fn snapshot(&self) -> Snapshot;
 }
@@ -109,8 +114,8 @@ pub trait FromLink {
     fn next_order(&mut self) -> Option<Order>;
     /// The next job command, if any.
     fn next_command(&mut self) -> Option<JobRecord>;
-    /// The config in the mailbox, if any.
-    fn take_config(&mut self) -> Option<Config>;
+    /// The machine in the mailbox, if any.
+    fn take_config(&mut self) -> Option<BoardMachine>;
     /// Publishes the snapshot.
     fn publish(&mut self, snapshot: &Snapshot);
 }

@@ -7,8 +7,7 @@ use super::control::{Control, Inputs, ResetCause};
 use super::link::{BoardInfo, Link};
 use super::safety::force_safe;
 use super::store::JobStore;
-use super::{FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
-use crate::config::Config;
+use super::{BoardMachine, FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
 use crate::outputs::RecordingOutputs;
 use crate::wire::Snapshot;
 use heapless::Deque;
@@ -17,7 +16,7 @@ use heapless::Deque;
 pub struct Queues {
     orders: Deque<Order, ORDER_QUEUE>,
     commands: Deque<JobRecord, JOB_QUEUE>,
-    config: Option<Config>,
+    config: Option<BoardMachine>,
     snapshot: Snapshot,
 }
 
@@ -42,11 +41,11 @@ impl ToControl for Queues {
     fn command_room(&self) -> usize {
         self.commands.capacity() - self.commands.len()
     }
-    fn post_config(&mut self, config: &Config) -> bool {
+    fn post_config(&mut self, machine: &BoardMachine) -> bool {
         if self.config.is_some() {
             return false;
         }
-        self.config = Some(config.clone());
+        self.config = Some(machine.clone());
         true
     }
     fn snapshot(&self) -> Snapshot {
@@ -61,7 +60,7 @@ impl FromLink for Queues {
     fn next_command(&mut self) -> Option<JobRecord> {
         self.commands.pop_front()
     }
-    fn take_config(&mut self) -> Option<Config> {
+    fn take_config(&mut self) -> Option<BoardMachine> {
         self.config.take()
     }
     fn publish(&mut self, snapshot: &Snapshot) {

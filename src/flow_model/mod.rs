@@ -118,13 +118,18 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// (f32, four inlets), which the board's control interrupt must not build on its stack
     /// and move.
     pub fn reset(&mut self, machine: &Machine<R, N>, material: u8) {
+        self.configure(machine);
+        self.restart(machine, material);
+    }
+
+    /// What depends on the machine only: line parameters and decay powers, flow laws,
+    /// syringe response tables and rates.
+    fn configure(&mut self, machine: &Machine<R, N>) {
         let dt = machine.dt();
         self.params.clear();
         self.powers.clear();
-        self.lines.clear();
         self.laws.clear();
         self.responses.clear();
-        self.plungers.clear();
         self.rates = [R::ZERO; N];
         self.all_linear = true;
         for (i, inlet) in machine.inlets.iter().enumerate() {
@@ -139,7 +144,6 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                         );
                     }
                 }
-                let _ = self.plungers.push(Plunger::IDLE);
                 self.rates[i] = sy.rate;
             }
             let p = LineParams::new(inlet, dt);
@@ -153,14 +157,27 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                 }
             }
             let _ = self.params.push(p);
-            let _ = self.lines.push(Line::default());
             let _ = self.laws.push(inlet.law);
             self.all_linear &= inlet.law.linear;
         }
-        self.channel
-            .refill(material, machine.v_channel, machine.v_hang);
         self.dt = dt;
         self.inv_dt = R::ONE / dt;
+    }
+
+    /// Back to rest for a new job on the same machine: valves shut, lines vented, plungers
+    /// still, channel and filament full of `material`. Keeps what `configure` worked out
+    /// (the syringe tables above all), so a job starts in a few microseconds.
+    pub fn restart(&mut self, machine: &Machine<R, N>, material: u8) {
+        self.lines.clear();
+        self.plungers.clear();
+        for _ in machine.inlets.iter() {
+            let _ = self.lines.push(Line::default());
+        }
+        for _ in self.responses.iter() {
+            let _ = self.plungers.push(Plunger::IDLE);
+        }
+        self.channel
+            .refill(material, machine.v_channel, machine.v_hang);
         self.next = 0;
         self.q = R::ZERO;
         self.solved = [R::ZERO; 2];

@@ -1,18 +1,17 @@
 //! What the control loop (interrupt) and the link (thread mode) share: two fixed-size
-//! embassy-sync channels (orders, job records), a one-slot config mailbox and the status
+//! embassy-sync channels (orders, job records), a one-slot mailbox of validated machines and the status
 //! snapshot. Every access is a short critical section; nobody waits.
 
 use core::cell::{Cell, RefCell};
-use dollop::device::{FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
+use dollop::device::{BoardMachine, FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
 use dollop::wire::Snapshot;
-use dollop::Config;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 
 static ORDERS: Channel<CriticalSectionRawMutex, Order, ORDER_QUEUE> = Channel::new();
 static COMMANDS: Channel<CriticalSectionRawMutex, JobRecord, JOB_QUEUE> = Channel::new();
-static CONFIG: Mutex<CriticalSectionRawMutex, RefCell<Option<Config>>> =
+static CONFIG: Mutex<CriticalSectionRawMutex, RefCell<Option<BoardMachine>>> =
     Mutex::new(RefCell::new(None));
 static SNAPSHOT: Mutex<CriticalSectionRawMutex, Cell<Snapshot>> =
     Mutex::new(Cell::new(Snapshot::POWER_UP));
@@ -36,13 +35,13 @@ impl ToControl for LinkEnd {
     fn command_room(&self) -> usize {
         COMMANDS.free_capacity()
     }
-    fn post_config(&mut self, config: &Config) -> bool {
+    fn post_config(&mut self, machine: &BoardMachine) -> bool {
         CONFIG.lock(|c| {
             let mut c = c.borrow_mut();
             if c.is_some() {
                 return false;
             }
-            *c = Some(config.clone());
+            *c = Some(machine.clone());
             true
         })
     }
@@ -58,7 +57,7 @@ impl FromLink for ControlEnd {
     fn next_command(&mut self) -> Option<JobRecord> {
         COMMANDS.try_receive().ok()
     }
-    fn take_config(&mut self) -> Option<Config> {
+    fn take_config(&mut self) -> Option<BoardMachine> {
         CONFIG.lock(|c| c.borrow_mut().take())
     }
     fn publish(&mut self, snapshot: &Snapshot) {
