@@ -44,8 +44,8 @@ fn status_over_tcp_reaches_the_board() {
         .unwrap();
     stop.store(true, Ordering::Relaxed);
     board.join().unwrap();
-    let text = String::from_utf8_lossy(&out.stdout).to_string()
-        + &String::from_utf8_lossy(&out.stderr);
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{text}");
     assert!(text.contains("sim"), "the board's name is missing: {text}");
 }
