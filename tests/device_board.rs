@@ -330,3 +330,18 @@ fn an_estop_that_preempts_a_valve_write_is_not_undone() {
     assert_eq!(c.mode(), Mode::Halted);
     assert_eq!(pins.pins.valves, 0);
 }
+
+#[test]
+fn the_boards_compile_time_control_state_learns_a_watchdog_reset_at_boot() {
+    // The firmware builds its `Control` in a static before it can read the reset cause.
+    let mut c = Control::new(ResetCause::PowerOn);
+    c.set_reset_cause(ResetCause::Watchdog);
+    let mut out = RecordingOutputs::default();
+    c.power_up(&mut out);
+    let mut q = Queues::default();
+    c.tick(100, Inputs::default(), &mut q, &mut out);
+    use dollop::device::ToControl;
+    let s = q.snapshot();
+    assert_eq!(s.mode, Mode::Halted);
+    assert_eq!(s.halt, Some(Halt::Fault(dollop::Fault::Watchdog)));
+}

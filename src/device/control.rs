@@ -107,6 +107,14 @@ enum Active {
     Halted,
 }
 
+/// What the loop does first after `reset`: idle, or halted saying the watchdog bit.
+const fn start_state(reset: ResetCause) -> (Active, Option<Halt>) {
+    match reset {
+        ResetCause::PowerOn => (Active::Idle, None),
+        ResetCause::Watchdog => (Active::Halted, Some(Halt::Fault(Fault::Watchdog))),
+    }
+}
+
 /// The control loop.
 pub struct Control {
     exec: ExecSlot,
@@ -128,10 +136,7 @@ impl Control {
     /// The control loop after a reset: nothing configured, outputs to be made safe by
     /// `power_up`. After a watchdog reset it starts halted, so the user learns why.
     pub const fn new(reset: ResetCause) -> Self {
-        let (active, halt) = match reset {
-            ResetCause::PowerOn => (Active::Idle, None),
-            ResetCause::Watchdog => (Active::Halted, Some(Halt::Fault(Fault::Watchdog))),
-        };
+        let (active, halt) = start_state(reset);
         Control {
             exec: ExecSlot {
                 exec: Exec::unconfigured(),
@@ -155,10 +160,7 @@ impl Control {
     /// Records why the board started, for a `Control` built before it was known (the
     /// board's is built at compile time): after a watchdog reset it starts halted.
     pub fn set_reset_cause(&mut self, reset: ResetCause) {
-        if reset == ResetCause::Watchdog {
-            self.active = Active::Halted;
-            self.halt = Some(Halt::Fault(Fault::Watchdog));
-        }
+        (self.active, self.halt) = start_state(reset);
     }
 
     /// Drives the outputs to the safe state; the board calls this before anything else.
