@@ -540,6 +540,8 @@ class Chip:
                 return new
             if off == 0x14:
                 self.outputs[name] = new & 0xFFFF
+        if name == "OTG_FS" and off in (0x04, 0x14):
+            new = old & ~(value << shift)  # GOTGINT, GINTSTS: write 1 to clear
         if name == "RCC" and off == 0x74 and new & (1 << 24):
             new &= 0x00FFFFFF  # RMVF clears the reset flags
         self.values[waddr] = new
@@ -610,7 +612,8 @@ TIM3_IRQ = 29
 
 
 class Emulator:
-    def __init__(self, image, args, log_dir, label):
+    def __init__(self, image, args, log_dir, label, serial=None):
+        """serial: QEMU -serial backends in USART order (USART1, USART2, USART3, UART4, ...)."""
         self.image, self.args, self.label = image, args, label
         self.chip = Chip()
         self.log = EventLog()
@@ -622,7 +625,10 @@ class Emulator:
         self.tim3_fixed = None
         port = free_port()
         self.qemu_log = open(os.path.join(log_dir, "qemu-%s.log" % label), "w")
-        cmd = [args.qemu, "-M", "netduinoplus2", "-display", "none", "-monitor", "none", "-serial", "null",
+        serial_args = []
+        for backend in serial or ["null"]:
+            serial_args += ["-serial", backend]
+        cmd = [args.qemu, "-M", "netduinoplus2", "-display", "none", "-monitor", "none"] + serial_args + [
                "-kernel", image.path, "-S",
                # nodelay: the stub's small replies must not wait for delayed ACKs
                "-chardev", "socket,id=gdb,host=127.0.0.1,port=%d,server=on,wait=off,nodelay=on" % port,
@@ -950,6 +956,7 @@ class Emulator:
             "disabled" if self.chip.pin("GPIOB", 15) else "ENABLED", self.chip.pin("GPIOB", 15)))
 
 
+FIL_SCENARIOS = ["print", "pause", "abort", "link-cut", "estop", "flipped"]
 EMULATORS = []
 DEBUG = bool(os.environ.get("EMULATE_DEBUG"))
 
@@ -975,10 +982,10 @@ def free_port():
 FAULT_STOPS = ("HardFault", "DefaultHandler", "panic", "Reset")
 
 
-def boot(image, args, log_dir, label):
+def boot(image, args, log_dir, label, serial=None):
     """A fresh QEMU halted at reset, relocated and clocked, run until the control loop's
     first period (the UART5 handler), with every unmodelled register modelled."""
-    emu = Emulator(image, args, log_dir, label)
+    emu = Emulator(image, args, log_dir, label, serial)
     emu.feeds = 0
     emu.stack_crossing = None
     emu.reset_setup()
@@ -1356,7 +1363,24 @@ def main():
     ap.add_argument("--run-wall", type=float, default=150.0)
     ap.add_argument("--fault-wall", type=float, default=2.0)
     ap.add_argument("--only", choices=["main", "hardfault", "panic"], action="append")
+    fil = ap.add_argument_group("firmware in the loop (--job): `dollop send` over the emulated UART4, pins "
+                                "against `dollop simulate --model-only`")
+    fil.add_argument("--job", help="job file (.dlp) to print; runs the firmware-in-the-loop scenarios")
+    fil.add_argument("--config", help="its machine config (TOML)")
+    fil.add_argument("--fil", action="append", choices=FIL_SCENARIOS,
+                     help="scenario to run (repeatable; default: all of %s)" % ", ".join(FIL_SCENARIOS))
+    fil.add_argument("--dollop", default="target/release/dollop", help="the host tool")
+    fil.add_argument("--inset-mm", type=float, default=1.0,
+                     help="power-up position: this far inside each axis's homing end (default 1)")
+    fil.add_argument("--fault-after", type=int, default=8,
+                     help="fault scenarios strike after this many valve writes of the print (default 8)")
+    fil.add_argument("--job-wall", type=float, default=600.0, help="wall-time bound of one print (s)")
+    fil.add_argument("--usb-workaround", dest="usb_workaround", action="store_true",
+                     help="report USB OUT endpoints active: only for images from before the "
+                          "EitherPort fix (see fil.Board.usb_workaround)")
     args = ap.parse_args()
+    if args.job and not args.config:
+        ap.error("--job needs --config")
 
     log_dir = args.keep_log or tempfile.mkdtemp(prefix="dollop-emulate-")
     os.makedirs(log_dir, exist_ok=True)
@@ -1365,9 +1389,14 @@ def main():
         args.elf, args.icount_shift, 1 << args.icount_shift), flush=True)
     results = []
     wall0 = time.monotonic()
-    scen = args.only or ["main", "hardfault", "panic"]
+    scen = args.only or ([] if args.job else ["main", "hardfault", "panic"])
+    summary = None
     try:
         run_scenarios(image, args, log_dir, scen, results)
+        if args.job:
+            from emulator import fil
+            args.fil = args.fil or FIL_SCENARIOS
+            summary = fil.run(image, args, log_dir, results)
     except (TargetGone, RuntimeError, OSError) as e:
         print("emulate: error: %s" % e, file=sys.stderr)
         for em in EMULATORS:
@@ -1383,6 +1412,9 @@ def main():
     finally:
         for e in EMULATORS:
             e.kill()
+        if args.job:
+            from emulator import fil
+            fil.kill_hosts()
     print()
     for name, ok, fig in results:
         print("%s  %-44s %s" % ("PASS" if ok else "FAIL", name, fig))
@@ -1392,6 +1424,11 @@ def main():
         "logs in %s" % log_dir if args.keep_log else "--keep-log DIR keeps the write logs"))
     if not args.keep_log:
         shutil.rmtree(log_dir, ignore_errors=True)
+    if args.job:
+        if failed:
+            print("firmware in the loop: FAILED (%d of %d checks)" % (len(failed), len(results)))
+        else:
+            print(summary or "firmware in the loop: %d checks passed (no print compared)" % len(results))
     return 1 if failed else 0
 
 
@@ -1430,5 +1467,8 @@ def run_scenarios(image, args, log_dir, scen, results):
 
 
 if __name__ == "__main__":
+    # emulator/fil.py imports this module as `emulate`: the same one, not a second copy.
+    sys.modules.setdefault("emulate", sys.modules["__main__"])
+    sys.dont_write_bytecode = True  # no __pycache__ in scripts/
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     sys.exit(main())

@@ -75,6 +75,10 @@ impl HostPort for Port {
     }
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
         self.w.port_call();
+        if !self.wire.open.get() {
+            // As a USB endpoint no host configured: the read fails at once.
+            return Err(PortClosed);
+        }
         let wire = self.wire.clone();
         core::future::poll_fn(move |_| match wire.incoming.borrow_mut().pop_front() {
             Some(p) => {

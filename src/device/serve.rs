@@ -167,19 +167,32 @@ impl<A: HostPort, B: HostPort> HostPort for EitherPort<A, B> {
         open
     }
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
+        // Only open sides are listened to: a USB endpoint that no host configured fails a
+        // read at once, which would end the wait for the other side's bytes.
         let spare = &mut self.spare;
-        match select(self.a.read(buf), self.b.read(spare)).await {
-            Either::First(r) => {
-                self.current = Side::A;
-                r
-            }
-            Either::Second(r) => {
-                self.current = Side::B;
-                let n = r?.min(buf.len());
-                buf[..n].copy_from_slice(&spare[..n]);
-                Ok(n)
-            }
+        let (side, r) = match (self.a.is_open(), self.b.is_open()) {
+            (true, true) => match select(self.a.read(buf), self.b.read(spare)).await {
+                Either::First(r) => (Side::A, r),
+                Either::Second(r) => (Side::B, r),
+            },
+            (true, false) => (Side::A, self.a.read(buf).await),
+            (false, true) => (Side::B, self.b.read(spare).await),
+            (false, false) => return Err(PortClosed),
+        };
+        let n = match r {
+            Ok(n) => n,
+            // The side the link talks to closed: the link must hear of it.
+            Err(e) if side == self.current => return Err(e),
+            // The other side closed: nothing the current host sent is lost.
+            Err(_) => return Ok(0),
+        };
+        self.current = side;
+        if side == Side::B {
+            let n = n.min(buf.len()).min(spare.len());
+            buf[..n].copy_from_slice(&spare[..n]);
+            return Ok(n);
         }
+        Ok(n)
     }
     async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
         match self.current {
