@@ -5,7 +5,7 @@
 use crate::slicer::gcode::{self, Style};
 use crate::slicer::image::{parse_colour, Classify, ImageOptions, Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
-use crate::slicer::{self, job_file, PathOptions, SliceError, SliceOptions};
+use crate::slicer::{self, output, PathOptions, SliceError, SliceOptions};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop slice`.
@@ -195,8 +195,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         })
         .transpose()?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.designs[0]));
-    job_file::write_job(&out, &sliced.header, &sliced.body)?;
-    let job_len = sliced.to_bytes().len();
+    // Every output is staged (written whole to a temporary file beside it) before any is
+    // renamed into place: a failure on one (a missing folder, a FIFO at the path) leaves
+    // none of them.
+    let mut staged = output::Outputs::new();
+    let job_bytes = sliced.to_bytes();
+    output::stage(&mut staged, &out, |w| w.write_all(&job_bytes))?;
+    if let (Some(path), Some((text, _))) = (&a.gcode, &gcode) {
+        output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
+    }
+    if let Some(path) = &a.preview {
+        let img = preview::draw(
+            &sliced.commands,
+            sliced.header.start_um,
+            &PreviewOptions {
+                bead_mm: config.channel.line_pitch_mm as f64,
+                layer: a.preview_layer,
+                ..Default::default()
+            },
+        );
+        output::stage(&mut staged, path, |w| {
+            let mut buf = Vec::new();
+            img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
+                .map_err(std::io::Error::other)?;
+            w.write_all(&buf)
+        })?;
+    }
+    output::commit(staged)?;
+    let job_len = job_bytes.len();
     let segs = sliced.header.print_segments.max(1) as f64;
     let st = &sliced.stats;
     println!(
@@ -219,8 +245,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         job_len as f64 / segs,
         sliced.body_bytes_per_segment()
     );
-    if let (Some(path), Some((text, gs))) = (&a.gcode, gcode) {
-        gcode::write_gcode(path, &text)?;
+    if let (Some(path), Some((_, gs))) = (&a.gcode, gcode) {
         println!(
             "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches)",
             path.display(),
@@ -231,16 +256,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(path) = &a.preview {
-        preview::render(
-            path,
-            &sliced.commands,
-            sliced.header.start_um,
-            &PreviewOptions {
-                bead_mm: config.channel.line_pitch_mm as f64,
-                layer: a.preview_layer,
-                ..Default::default()
-            },
-        )?;
         println!("wrote {}", path.display());
     }
     Ok(())
