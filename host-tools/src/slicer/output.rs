@@ -56,8 +56,18 @@ pub fn pending() -> Vec<PathBuf> {
 /// The I/O error without the temporary file's path, which the `tempfile` crate puts in
 /// its messages: the user should see their own file named, not `.dollop-XXXX.part`.
 fn plain(e: std::io::Error) -> std::io::Error {
-    match e.raw_os_error() {
+    if let Some(code) = e.raw_os_error() {
+        return std::io::Error::from_raw_os_error(code);
+    }
+    // tempfile wraps the OS error in its own error carrying the path; unwrap it.
+    let code = e
+        .get_ref()
+        .and_then(|inner| inner.source())
+        .and_then(|src| src.downcast_ref::<std::io::Error>())
+        .and_then(std::io::Error::raw_os_error);
+    match code {
         Some(code) => std::io::Error::from_raw_os_error(code),
+        None if e.to_string().contains(".part") => std::io::Error::from(e.kind()),
         None => e,
     }
 }
