@@ -1058,7 +1058,8 @@ mod tests {
 
     #[test]
     fn values_that_cannot_print_sensibly_are_refused_with_their_field() {
-        let cases: [(fn(&mut Config), &str); 9] = [
+        type Edit = fn(&mut Config);
+        let cases: [(Edit, &str); 9] = [
             (|c| c.channel.line_pitch_mm = 0.01, "channel.line_pitch_mm"),
             (
                 |c| c.channel.layer_height_mm = 0.001,

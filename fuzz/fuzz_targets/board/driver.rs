@@ -125,8 +125,8 @@ impl Driver {
             if let Some(e) = self.board.control.executor() {
                 let m = e.machine().motion;
                 let to_max = self.board.control.settings().home_to_max;
-                for a in 0..3 {
-                    self.board.start_mm[a] = if to_max[a] {
+                for (a, at) in self.board.start_mm.iter_mut().enumerate() {
+                    *at = if to_max[a] {
                         m.max_mm[a] - 0.5
                     } else {
                         m.min_mm[a] + 0.5

@@ -279,13 +279,13 @@ pub fn fit(
         ));
     }
     let (dx, mx) = spread(x);
-    if !(dx > 1e-12 * mx) {
+    if dx <= 1e-12 * mx {
         return Err(FitFailure(
             "every point has the same x: the curve is not identifiable".into(),
         ));
     }
     let (dy, my) = spread(y);
-    if !(dy > 1e-12 * my) {
+    if dy <= 1e-12 * my {
         return Err(FitFailure(
             "every measured value is the same (zero variance): nothing to fit".into(),
         ));
@@ -356,7 +356,7 @@ pub fn fit(
         let (smin, smax) = sv
             .iter()
             .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
-        if !(smin > 1e-9 * smax) {
+        if smin.is_nan() || smin <= 1e-9 * smax {
             return Err(FitFailure(
                 "the Jacobian is singular at the optimum: the parameters cannot be told apart \
                  from these data"
