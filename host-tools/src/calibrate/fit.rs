@@ -386,8 +386,9 @@ pub fn fit(
             Scale::Linear => (u - half, u + half),
             Scale::Log => ((u - half).exp(), (u + half).exp()),
         };
-        // A zero-width or infinite interval says nothing; "includes 0" of it would mislead.
-        if !(lo.is_finite() && hi.is_finite() && p[c].is_finite() && hi > lo) {
+        // An infinite or NaN interval says nothing. (Zero width is left to a perfect fit
+        // of varying data: constant data, the zero-width case, are refused above.)
+        if !(lo.is_finite() && hi.is_finite() && p[c].is_finite() && hi >= lo) {
             return Err(FitFailure(format!(
                 "no usable interval for {} ({:.3e} .. {:.3e}): the data do not determine it",
                 param.name, lo, hi
