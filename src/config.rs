@@ -383,6 +383,11 @@ pub struct Syringe<R> {
     pub rate: R,
 }
 
+/// Longest syringe lag the core follows: seconds for the Weibull response to come within
+/// 1e-6 of full flow. The bundled configs' syringes settle in 0.3 to 1.5 s, the bundled
+/// lag measurement (`host-tools/data/calibration/lag-syringe.csv`) in 3.2 s.
+pub const MAX_SYRINGE_SETTLE_S: f64 = 5.0;
+
 impl Syringe<f64> {
     /// Fraction of the plunger's rate flowing out `t` seconds after it started:
     /// `F(t) = 1 - exp(-k t^n)`.
@@ -572,13 +577,16 @@ impl Config {
             index: None,
         };
         let c = &self.channel;
-        let d = ch.positive_max("nozzle_diameter_mm", c.nozzle_diameter_mm, 20.0)? as f64;
+        // Lower bounds below are where printing stops making sense (a 50 um bead, a 10 um
+        // layer, 0.1 mm/s): past them the slicer's sampling and the step timing degenerate
+        // (a pitch under the 20 um sample grid panicked the image slicer).
+        let d = ch.range("nozzle_diameter_mm", c.nozzle_diameter_mm, 0.05, 20.0)? as f64;
         let ls = ch.positive_max("channel_length_mm", c.channel_length_mm, 500.0)? as f64;
         let h_noz = ch.range("nozzle_height_mm", c.nozzle_height_mm, 0.0, 50.0)? as f64;
-        let h_layer = ch.positive_max("layer_height_mm", c.layer_height_mm, 20.0)? as f64;
-        let pitch = ch.positive_max("line_pitch_mm", c.line_pitch_mm, 50.0)? as f64;
+        let h_layer = ch.range("layer_height_mm", c.layer_height_mm, 0.01, 20.0)? as f64;
+        let pitch = ch.range("line_pitch_mm", c.line_pitch_mm, 0.05, 50.0)? as f64;
         let s = match c.bead_area_mm2 {
-            Some(a) => ch.positive_max("bead_area_mm2", a, 1000.0)? as f64,
+            Some(a) => ch.range("bead_area_mm2", a, 1e-4, 1000.0)? as f64,
             None => pitch * h_layer,
         };
         let area = core::f64::consts::PI * d * d / 4.0;
@@ -630,7 +638,7 @@ impl Config {
         }
         for a in 0..3 {
             let spm =
-                axis_check("motion", a).positive_max("steps_per_mm", m.steps_per_mm[a], 1.0e5)?;
+                axis_check("motion", a).range("steps_per_mm", m.steps_per_mm[a], 1.0, 1.0e5)?;
             let lo =
                 axis_check("motion", a).range("travel_min_mm", m.travel_min_mm[a], -1e4, 1e4)?;
             let hi =
@@ -639,12 +647,9 @@ impl Config {
                 return Err(axis_check("motion", a).err("travel_max_mm", Problem::EmptyTravel));
             }
             let vmax =
-                axis_check("motion", a).positive_max("max_speed_mm_s", m.max_speed_mm_s[a], 5e3)?;
-            let amax = axis_check("motion", a).positive_max(
-                "max_accel_mm_s2",
-                m.max_accel_mm_s2[a],
-                1e6,
-            )?;
+                axis_check("motion", a).range("max_speed_mm_s", m.max_speed_mm_s[a], 0.1, 5e3)?;
+            let amax =
+                axis_check("motion", a).range("max_accel_mm_s2", m.max_accel_mm_s2[a], 1.0, 1e6)?;
             let needed = vmax as f64 * spm as f64;
             if needed > allowed_rate {
                 return Err(axis_check("motion", a).err(
@@ -662,8 +667,8 @@ impl Config {
             max_accel[a] = R::of(amax as f64);
         }
         let v_xy_max = m.max_speed_mm_s[0].min(m.max_speed_mm_s[1]);
-        let print_speed = mc.positive("print_speed_mm_s", m.print_speed_mm_s)? as f64;
-        let cap = mc.positive("print_speed_max_mm_s", m.print_speed_max_mm_s)?;
+        let print_speed = mc.range("print_speed_mm_s", m.print_speed_mm_s, 0.1, 5e3)? as f64;
+        let cap = mc.range("print_speed_max_mm_s", m.print_speed_max_mm_s, 0.1, 5e3)?;
         if cap > v_xy_max {
             return Err(mc.err(
                 "print_speed_max_mm_s",
@@ -684,7 +689,7 @@ impl Config {
                 },
             ));
         }
-        let travel = mc.positive("travel_speed_mm_s", m.travel_speed_mm_s)?;
+        let travel = mc.range("travel_speed_mm_s", m.travel_speed_mm_s, 0.1, 5e3)?;
         let stop_fraction = mc.range("flow_stop_fraction", m.flow_stop_fraction, 1e-5, 0.5)?;
 
         // Inlets.
@@ -760,7 +765,7 @@ impl Config {
             };
             let law = &laws[i];
             let supply_pa = match inlet.pressure_kpa {
-                Pressure::Kpa(k) => ic.positive_max("pressure_kpa", k, 2000.0)? as f64 * 1e3,
+                Pressure::Kpa(k) => ic.range("pressure_kpa", k, 0.1, 2000.0)? as f64 * 1e3,
                 Pressure::Auto => {
                     let q = print_speed * s;
                     let p = v_channel * (law.a * libm::pow(q, law.n) + law.b);
@@ -782,9 +787,26 @@ impl Config {
             };
             let syringe = match inlet.syringe {
                 Some(sy) => {
-                    let spm3 = ic.positive_max("syringe.steps_per_mm3", sy.steps_per_mm3, 1.0e6)?;
+                    let spm3 = ic.range("syringe.steps_per_mm3", sy.steps_per_mm3, 0.01, 1.0e6)?;
                     let k = ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
                     let n = ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
+                    // The executor follows the lag through a 255-point response table
+                    // and looks ahead a bounded volume: a lag that takes longer than
+                    // this to settle (k = 1e-6, n = 5 takes 27 s) misplaced boundaries
+                    // by 21 mm in simulation.
+                    let settle = Syringe::settle_time(k as f64, n as f64);
+                    if settle.is_nan() || settle > MAX_SYRINGE_SETTLE_S {
+                        return Err(ic.err(
+                            "syringe.lag_k",
+                            Problem::Above {
+                                got: settle as f32,
+                                limit: MAX_SYRINGE_SETTLE_S as f32,
+                                what: "the longest lag the core follows, in seconds to settle \
+                                       within 1e-6 ((ln 1e6 / lag_k)^(1/lag_n)); raise lag_k \
+                                       or lower lag_n",
+                            },
+                        ));
+                    }
                     if self.inlets.iter().any(|x| x.syringe.is_none()) {
                         return Err(ic.err("syringe", Problem::MixedDrives));
                     }
@@ -1041,5 +1063,76 @@ mod tests {
             ),
             "{e}"
         );
+    }
+
+    #[test]
+    fn values_that_cannot_print_sensibly_are_refused_with_their_field() {
+        type Edit = fn(&mut Config);
+        let cases: [(Edit, &str); 9] = [
+            (|c| c.channel.line_pitch_mm = 0.01, "channel.line_pitch_mm"),
+            (
+                |c| c.channel.layer_height_mm = 0.001,
+                "channel.layer_height_mm",
+            ),
+            (
+                |c| c.channel.nozzle_diameter_mm = 0.01,
+                "channel.nozzle_diameter_mm",
+            ),
+            (
+                |c| c.motion.steps_per_mm[1] = 0.01,
+                "motion.steps_per_mm[1]",
+            ),
+            (
+                |c| c.motion.max_accel_mm_s2[0] = 0.001,
+                "motion.max_accel_mm_s2[0]",
+            ),
+            (
+                |c| c.motion.print_speed_mm_s = 1e-4,
+                "motion.print_speed_mm_s",
+            ),
+            (
+                |c| c.motion.travel_speed_mm_s = 1e-4,
+                "motion.travel_speed_mm_s",
+            ),
+            (
+                |c| c.inlets[0].pressure_kpa = Pressure::Kpa(1e-3),
+                "inlet[0].pressure_kpa",
+            ),
+            (
+                |c| c.motion.max_speed_mm_s[2] = 0.01,
+                "motion.max_speed_mm_s[2]",
+            ),
+        ];
+        for (edit, field) in cases {
+            let mut c = seed();
+            edit(&mut c);
+            let e = c.validate::<f64, 4>().unwrap_err();
+            let text = std::format!("{e}");
+            assert!(text.starts_with(field), "{text} should name {field}");
+            assert!(text.contains("accepted range"), "{text}");
+        }
+    }
+
+    #[test]
+    fn a_syringe_lag_too_slow_to_follow_is_refused_and_the_bundled_ones_pass() {
+        let with_lag = |k: f32, n: f32| {
+            let mut c = seed();
+            for i in c.inlets.iter_mut() {
+                i.syringe = Some(SyringeConfig {
+                    steps_per_mm3: 2.264,
+                    lag_k: k,
+                    lag_n: n,
+                });
+            }
+            c.validate::<f64, 4>()
+        };
+        // The issue's case: settles in 27 s.
+        let e = with_lag(1e-6, 5.0).unwrap_err();
+        let text = std::format!("{e}");
+        assert!(text.starts_with("inlet[0].syringe.lag_k"), "{text}");
+        assert!(text.contains("longest lag"), "{text}");
+        for (k, n) in [(45.0, 1.1), (30.0, 1.3), (8.0, 1.5), (20.0, 1.0)] {
+            with_lag(k, n).unwrap_or_else(|e| panic!("lag_k {k}, lag_n {n}: {e}"));
+        }
     }
 }

@@ -17,7 +17,8 @@ pub struct RunOptions {
     pub plant: bool,
     /// Plant RK4 step, s (split further at valve events).
     pub plant_step_s: f64,
-    /// Give up after this much simulated time, s.
+    /// Give up after this much simulated time, s (infinite: run until the job ends; the
+    /// executor always ends a job, since every command finishes or faults).
     pub max_time_s: f64,
 }
 
@@ -26,7 +27,7 @@ impl Default for RunOptions {
         RunOptions {
             plant: true,
             plant_step_s: 1e-4,
-            max_time_s: 3600.0,
+            max_time_s: f64::INFINITY,
         }
     }
 }
@@ -41,7 +42,7 @@ pub enum SimError {
     #[error("job cannot begin: {0}")]
     Begin(Fault),
     /// Simulated time ran out before the job finished.
-    #[error("job did not finish within {0} s of simulated time")]
+    #[error("job did not finish within {0} s of simulated time (raise --max-seconds)")]
     Timeout(f64),
 }
 
@@ -144,6 +145,7 @@ pub fn run<R: Real>(
     let mut hist: [[f64; 2]; 3] = [[f64::NAN; 2]; 3];
     let mut max_slugs = 0u8;
     let mut landing_prev = job.initial_material;
+    // Saturates to u64::MAX for an infinite limit (and to 0 for a NaN one).
     let max_cycles = (opts.max_time_s / dt) as u64;
     let mut changes = Vec::new();
     loop {

@@ -264,6 +264,32 @@ pub fn fit(
             k + 2
         )));
     }
+    // Data that cannot determine any curve: refuse it rather than print a fit of it.
+    let spread = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        (hi - lo, lo.abs().max(hi.abs()))
+    };
+    if x.iter().chain(y).any(|v| !v.is_finite() || v.abs() > 1e100) {
+        return Err(FitFailure(
+            "a value is not finite or beyond 1e100 (check the units)".into(),
+        ));
+    }
+    let (dx, mx) = spread(x);
+    if dx <= 1e-12 * mx {
+        return Err(FitFailure(
+            "every point has the same x: the curve is not identifiable".into(),
+        ));
+    }
+    let (dy, my) = spread(y);
+    if dy <= 1e-12 * my {
+        return Err(FitFailure(
+            "every measured value is the same (zero variance): nothing to fit".into(),
+        ));
+    }
     let u0 = DVector::from_iterator(
         k,
         model.params.iter().map(|p| match p.scale {
@@ -305,6 +331,39 @@ pub fn fit(
     if p.iter().any(|v| !v.is_finite()) || r.iter().any(|v| !v.is_finite()) {
         return Err(FitFailure("a parameter ran off to infinity".into()));
     }
+    // A parameter that ran many decades from its data-derived start has gone to a bound
+    // of what the data can say (1.8e-39 ms is not a time constant).
+    for (c, param) in model.params.iter().enumerate() {
+        if param.scale == Scale::Log && (problem.u[c] - param.start.ln()).abs() > 12.0 * 10f64.ln()
+        {
+            return Err(FitFailure(format!(
+                "{} ran to a bound ({:.3e}, from a start of {:.3e}): the data do not determine it",
+                param.name, p[c], param.start
+            )));
+        }
+    }
+    // Singular (or nearly) Jacobian, columns scaled to unit length: some combination of
+    // parameters does not change the curve at these points.
+    {
+        let mut js = j.clone();
+        for mut col in js.column_iter_mut() {
+            let n = col.norm();
+            if n > 0.0 && n.is_finite() {
+                col /= n;
+            }
+        }
+        let sv = js.singular_values();
+        let (smin, smax) = sv
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+        if smin.is_nan() || smin <= 1e-9 * smax {
+            return Err(FitFailure(
+                "the Jacobian is singular at the optimum: the parameters cannot be told apart \
+                 from these data"
+                    .into(),
+            ));
+        }
+    }
     let rss = r.norm_squared();
     let dof = m - k;
     let s2 = rss / dof as f64;
@@ -327,6 +386,14 @@ pub fn fit(
             Scale::Linear => (u - half, u + half),
             Scale::Log => ((u - half).exp(), (u + half).exp()),
         };
+        // An infinite or NaN interval says nothing. (Zero width is left to a perfect fit
+        // of varying data: constant data, the issue's zero-width case, are refused above.)
+        if !(lo.is_finite() && hi.is_finite() && p[c].is_finite() && hi >= lo) {
+            return Err(FitFailure(format!(
+                "no usable interval for {} ({:.3e} .. {:.3e}): the data do not determine it",
+                param.name, lo, hi
+            )));
+        }
         estimates.push(Estimate {
             name: param.name,
             unit: param.unit,
@@ -496,5 +563,69 @@ mod tests {
     fn t_quantile_matches_tables() {
         assert!((t95(1) - 12.706).abs() < 1e-3);
         assert!((t95(10) - 2.228).abs() < 1e-3);
+    }
+
+    #[test]
+    fn data_that_cannot_determine_a_fit_are_refused_with_the_reason() {
+        let x: Vec<f64> = (0..10).map(|i| i as f64).collect();
+        let flat = vec![2.5; 10];
+        let e = fit(
+            &exp_model(),
+            &x,
+            &flat,
+            Space::Linear,
+            FitOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.0.contains("zero variance"), "{e:?}");
+        let same_x = vec![1.0; 10];
+        let y: Vec<f64> = (0..10).map(|i| 1.0 + i as f64).collect();
+        let e = fit(
+            &exp_model(),
+            &same_x,
+            &y,
+            Space::Linear,
+            FitOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.0.contains("same x"), "{e:?}");
+        let huge: Vec<f64> = (0..10).map(|i| 1e300 * (1.0 + i as f64)).collect();
+        let e = fit(
+            &exp_model(),
+            &x,
+            &huge,
+            Space::Linear,
+            FitOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.0.contains("1e100"), "{e:?}");
+    }
+
+    #[test]
+    fn a_parameter_the_curve_does_not_depend_on_is_refused() {
+        // y = a exp(b x) + 0 c: c is not identifiable whatever the data.
+        let mut m = exp_model();
+        m.params.push(Param {
+            name: "c",
+            unit: "",
+            scale: Scale::Linear,
+            start: 1.0,
+        });
+        let g = m.grad.clone();
+        m.grad = Arc::new(move |x, p, out| {
+            g(x, p, &mut out[..2]);
+            out[2] = 0.0;
+        });
+        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| 3.0 * (0.7 * x).exp() * (1.0 + 0.001 * ((i * 7 % 5) as f64 - 2.0)))
+            .collect();
+        let e = fit(&m, &x, &y, Space::Linear, FitOptions::default()).unwrap_err();
+        assert!(
+            e.0.contains("singular") || e.0.contains("told apart"),
+            "{e:?}"
+        );
     }
 }

@@ -179,6 +179,7 @@ pub fn mesh_slicing(ctx: &Ctx) -> anyhow::Result<()> {
             max_layers: None,
             min_run_mm: 0.1,
             progress: false,
+            max_segments: u64::MAX,
         },
     )?;
     let t_vox = secs(t);

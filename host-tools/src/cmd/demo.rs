@@ -138,6 +138,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             trace: None,
             heatmap: Some(&mut heat),
             progress: true,
+            max_seconds: f64::INFINITY,
         },
     )?;
     let wall = t.elapsed();

@@ -36,6 +36,10 @@ pub struct Args {
     /// faster, but it cannot disagree with the executor.
     #[arg(long)]
     pub model_only: bool,
+    /// Give up (with an error) after this much simulated print time, s [default: no limit;
+    /// long jobs show a progress bar on a terminal].
+    #[arg(long, value_name = "S")]
+    pub max_seconds: Option<f64>,
 }
 
 /// What `simulate_job` should produce besides the result.
@@ -46,6 +50,8 @@ pub struct Outputs<'a> {
     pub heatmap: Option<&'a mut Heatmap>,
     /// Show a progress bar on a terminal.
     pub progress: bool,
+    /// Simulated seconds after which the run gives up (infinite: none).
+    pub max_seconds: f64,
 }
 
 /// Runs `job` on `config`, streaming the trace and painting the heatmap.
@@ -69,6 +75,7 @@ pub fn simulate_job(
     let Outputs {
         mut trace,
         mut heatmap,
+        max_seconds,
         ..
     } = out;
     let mut io_error: Option<std::io::Error> = None;
@@ -81,6 +88,7 @@ pub fn simulate_job(
     let mut last_mask = u32::MAX;
     let opts = RunOptions {
         plant,
+        max_time_s: max_seconds,
         ..Default::default()
     };
     let result = dollop_sim::run::<f32>(config, job, &opts, |c| {
@@ -135,13 +143,24 @@ pub fn report_text(
         r.time_s, r.segments, wall
     ));
     s.push_str(&format!("material switches {}\n", r.switches));
-    s.push_str(&format!(
-        "boundaries        {} measured, worst {:.4} mm from the design along the path\n",
-        m.boundaries.len(),
-        m.worst_boundary()
-    ));
+    if m.boundaries.is_empty() {
+        // A worst of nothing is no figure: say there was nothing to measure.
+        s.push_str("boundaries        none measured\n");
+    } else {
+        s.push_str(&format!(
+            "boundaries        {} measured, worst {:.4} mm from the design along the path\n",
+            m.boundaries.len(),
+            m.worst_boundary()
+        ));
+    }
     for line in m.mismatches.iter().take(3) {
         s.push_str(&format!("  material sequence differs: {line}\n"));
+    }
+    if m.mismatches.len() > 3 {
+        s.push_str(&format!(
+            "  ... and {} more differences\n",
+            m.mismatches.len() - 3
+        ));
     }
     s.push_str(&format!(
         "bead section      {:.4} .. {:.4} of S = {:.3} mm^2 (over every 0.02 mm of bead)\n",
@@ -189,24 +208,33 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         initial_material: header.initial_material,
         commands,
     };
+    let max_seconds = match a.max_seconds {
+        None => f64::INFINITY,
+        Some(v) if v.is_finite() && v > 0.0 => v,
+        Some(v) => anyhow::bail!("--max-seconds {v} must be a number of seconds above 0"),
+    };
+    let job_name = a.job.display().to_string();
     let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
     let t = std::time::Instant::now();
+    // Trace and heatmap are staged and renamed together at the end: an interrupted or
+    // failed run leaves neither (Ctrl-C removes the temporary files).
+    let mut staged = output::Outputs::new();
+    let run_it = |out: Outputs<'_>| {
+        simulate_job(&config, &job, plant, out).with_context(|| job_name.clone())
+    };
+
     let result = match &a.trace {
         Some(path) => {
             let mut res = None;
             let mut failure = None;
-            output::write_atomic(path, |w| {
-                match simulate_job(
-                    &config,
-                    &job,
-                    plant,
-                    Outputs {
-                        trace: Some(w),
-                        heatmap: heat.as_mut(),
-                        progress: true,
-                    },
-                ) {
+            output::stage(&mut staged, path, |w| {
+                match run_it(Outputs {
+                    trace: Some(w),
+                    heatmap: heat.as_mut(),
+                    progress: true,
+                    max_seconds,
+                }) {
                     Ok(r) => {
                         res = Some(r);
                         Ok(())
@@ -223,27 +251,30 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             })?;
             res.context("simulation produced no result")?
         }
-        None => simulate_job(
-            &config,
-            &job,
-            plant,
-            Outputs {
-                trace: None,
-                heatmap: heat.as_mut(),
-                progress: true,
-            },
-        )?,
+        None => run_it(Outputs {
+            trace: None,
+            heatmap: heat.as_mut(),
+            progress: true,
+            max_seconds,
+        })?,
     };
     let wall = t.elapsed();
     if let (Some(path), Some(h)) = (&a.heatmap, heat.as_mut()) {
         h.mark_boundaries(&result.metrics.boundaries);
-        h.save(path)?;
+        h.stage(&mut staged, path)?;
     }
+    output::commit(staged)?;
     if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
         print!("{}", report_text(&result, &config, plant, wall));
     }
     if let Some(f) = result.fault {
-        anyhow::bail!("{}: the job ended in a fault: {f}", a.job.display());
+        anyhow::bail!("{job_name}: the job ended in a fault: {f}");
+    }
+    if let Some(first) = result.metrics.mismatches.first() {
+        anyhow::bail!(
+            "{job_name}: the material sequence on the plate differs from the design ({} difference(s); first: {first})",
+            result.metrics.mismatches.len()
+        );
     }
     Ok(())
 }
@@ -360,8 +391,16 @@ impl Heatmap {
 
     /// Writes the PNG atomically.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let mut staged = output::Outputs::new();
+        self.stage(&mut staged, path)?;
+        output::commit(staged)?;
+        Ok(())
+    }
+
+    /// Stages the PNG in `staged` (renamed into place when it is committed).
+    pub fn stage(&self, staged: &mut output::Outputs, path: &Path) -> anyhow::Result<()> {
         use image::ImageEncoder;
-        output::write_atomic(path, |w| {
+        output::stage(staged, path, |w| {
             image::codecs::png::PngEncoder::new(w)
                 .write_image(
                     self.img.as_raw(),

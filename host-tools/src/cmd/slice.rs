@@ -5,7 +5,7 @@
 use crate::slicer::gcode::{self, Style};
 use crate::slicer::image::{parse_colour, Classify, ImageOptions, Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
-use crate::slicer::{self, job_file, PathOptions, SliceError, SliceOptions};
+use crate::slicer::{self, output, Limits, PathOptions, SliceError, SliceOptions};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop slice`.
@@ -88,6 +88,20 @@ pub struct Args {
     /// [default: two line pitches].
     #[arg(long, value_name = "MM")]
     pub connect_mm: Option<f64>,
+    /// Refuse images of more pixels than this (width x height; each takes 4 bytes as RGBA).
+    #[arg(long, value_name = "N", default_value_t = Limits::default().max_pixels)]
+    pub max_pixels: u64,
+    /// Refuse designs of more print runs than this (layers x rows x material runs: about
+    /// the job's print segments; 2 million make a job of about 12 MB and G-code of 1 GB).
+    #[arg(long, value_name = "N", default_value_t = Limits::default().max_segments)]
+    pub max_segments: u64,
+    /// Refuse meshes of more triangles than this (all bodies together, 3MF components
+    /// expanded).
+    #[arg(long, value_name = "N", default_value_t = Limits::default().max_triangles)]
+    pub max_triangles: u64,
+    /// Refuse 3MF files whose model XML is larger than this, MiB (uncompressed).
+    #[arg(long, value_name = "MIB", default_value_t = Limits::default().max_3mf_bytes >> 20)]
+    pub max_3mf_mb: u64,
 }
 
 impl Args {
@@ -128,6 +142,24 @@ impl Args {
         if self.layers == Some(0) {
             return Err(opt("--layers must be at least 1".into()));
         }
+        if let Some(c) = self.connect_mm {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(opt(format!(
+                    "--connect-mm {c} must be a distance of 0 or more"
+                )));
+            }
+        }
+        if !(self.background_tolerance.is_finite() && self.background_tolerance >= 0.0) {
+            return Err(opt(format!(
+                "--background-tolerance {} must be a distance of 0 or more",
+                self.background_tolerance
+            )));
+        }
+        if let Some(p) = self.prime_mm {
+            if !p.is_finite() {
+                return Err(opt(format!("--prime-mm {p} must be a number of mm")));
+            }
+        }
         Ok(SliceOptions {
             image: ImageOptions {
                 width_mm: self.width_mm,
@@ -148,6 +180,12 @@ impl Args {
             },
             min_run_mm: self.min_run_mm,
             progress: true,
+            limits: Limits {
+                max_pixels: self.max_pixels,
+                max_segments: self.max_segments,
+                max_triangles: self.max_triangles,
+                max_3mf_bytes: self.max_3mf_mb.saturating_mul(1 << 20),
+            },
         })
     }
 }
@@ -195,8 +233,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         })
         .transpose()?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.designs[0]));
-    job_file::write_job(&out, &sliced.header, &sliced.body)?;
-    let job_len = sliced.to_bytes().len();
+    // Every output is staged (written whole to a temporary file beside it) before any is
+    // renamed into place: a failure on one (a missing folder, a FIFO at the path) leaves
+    // none of them.
+    let mut staged = output::Outputs::new();
+    let job_bytes = sliced.to_bytes();
+    output::stage(&mut staged, &out, |w| w.write_all(&job_bytes))?;
+    if let (Some(path), Some((text, _))) = (&a.gcode, &gcode) {
+        output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
+    }
+    if let Some(path) = &a.preview {
+        let img = preview::draw(
+            &sliced.commands,
+            sliced.header.start_um,
+            &PreviewOptions {
+                bead_mm: config.channel.line_pitch_mm as f64,
+                layer: a.preview_layer,
+                ..Default::default()
+            },
+        );
+        output::stage(&mut staged, path, |w| {
+            let mut buf = Vec::new();
+            img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
+                .map_err(std::io::Error::other)?;
+            w.write_all(&buf)
+        })?;
+    }
+    output::commit(staged)?;
+    let job_len = job_bytes.len();
     let segs = sliced.header.print_segments.max(1) as f64;
     let st = &sliced.stats;
     println!(
@@ -219,8 +283,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         job_len as f64 / segs,
         sliced.body_bytes_per_segment()
     );
-    if let (Some(path), Some((text, gs))) = (&a.gcode, gcode) {
-        gcode::write_gcode(path, &text)?;
+    if let (Some(path), Some((_, gs))) = (&a.gcode, gcode) {
         println!(
             "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches)",
             path.display(),
@@ -231,16 +294,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(path) = &a.preview {
-        preview::render(
-            path,
-            &sliced.commands,
-            sliced.header.start_um,
-            &PreviewOptions {
-                bead_mm: config.channel.line_pitch_mm as f64,
-                layer: a.preview_layer,
-                ..Default::default()
-            },
-        )?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -94,21 +94,42 @@ impl Default for ImageOptions {
 /// Extensions read as images.
 pub const IMAGE_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "bmp"];
 
-/// Decodes `path`.
+/// Decodes `path` with the default pixel limit.
 pub fn load(path: &Path) -> Result<DynamicImage, SliceError> {
-    let bytes = std::fs::read(path).map_err(|e| SliceError::read(path, e))?;
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| SliceError::read(path, e))?;
-    let mut reader = reader;
-    // A bound on decoded size keeps a hostile header from asking for gigabytes.
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(1 << 30);
-    reader.limits(limits);
-    reader.decode().map_err(|e| SliceError::Image {
+    load_limited(path, super::Limits::default().max_pixels)
+}
+
+/// Decodes `path`, refusing (from its header, before decoding) an image of more than
+/// `max_pixels`: the slicer converts every image to 4-byte RGBA, so a one-bit PNG of
+/// 32000 x 32000 would take 4 GB after its 128 MB decode.
+pub fn load_limited(path: &Path, max_pixels: u64) -> Result<DynamicImage, SliceError> {
+    let open = || -> Result<_, SliceError> {
+        let file = std::fs::File::open(path).map_err(|e| SliceError::read(path, e))?;
+        image::ImageReader::new(std::io::BufReader::new(file))
+            .with_guessed_format()
+            .map_err(|e| SliceError::read(path, e))
+    };
+    let bad = |e: image::ImageError| SliceError::Image {
         path: path.to_path_buf(),
         reason: one_line(&e.to_string()),
-    })
+    };
+    let (w, h) = open()?.into_dimensions().map_err(bad)?;
+    let pixels = w as u64 * h as u64;
+    if pixels > max_pixels {
+        return Err(super::over_limit(
+            &path.display().to_string(),
+            &format!("{w} x {h} ="),
+            pixels,
+            max_pixels,
+            "--max-pixels",
+        ));
+    }
+    let mut reader = open()?;
+    // The decoder's own buffer: up to 8 bytes a pixel (16-bit RGBA) within the limit.
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(max_pixels.saturating_mul(8));
+    reader.limits(limits);
+    reader.decode().map_err(bad)
 }
 
 pub(crate) fn one_line(s: &str) -> String {
@@ -130,6 +151,17 @@ pub fn slice_image(
     inlets: usize,
     min_run_mm: f64,
 ) -> Result<Design, SliceError> {
+    if !(opts.background_tolerance.is_finite() && opts.background_tolerance >= 0.0) {
+        return Err(SliceError::Option(format!(
+            "--background-tolerance {} must be a distance of 0 or more",
+            opts.background_tolerance
+        )));
+    }
+    if !(pitch_mm.is_finite() && pitch_mm > 0.0) {
+        return Err(SliceError::Option(format!(
+            "{name}: line pitch {pitch_mm} mm must be above 0"
+        )));
+    }
     let rgba = orient(img.to_rgba8(), opts);
     let (w, h) = (rgba.width() as usize, rgba.height() as usize);
     if w == 0 || h == 0 {
@@ -143,7 +175,8 @@ pub fn slice_image(
     // Rows at the pitch; along a row, samples as fine as the pixels (boundaries keep the
     // image's resolution) but never coarser than the pitch nor finer than 20 um.
     let rows = ((h as f64 * px_y / pitch_mm).round() as usize).max(1);
-    let cell = px_x.clamp(0.02, pitch_mm);
+    // max then min (not clamp): a pitch under 20 um must not panic (clamp's min > max).
+    let cell = px_x.max(0.02).min(pitch_mm);
     let cols = ((w as f64 * px_x / cell).round() as usize).max(1);
     if rows.saturating_mul(cols) > 400_000_000 {
         return Err(SliceError::Option(format!(

@@ -115,18 +115,32 @@ impl Mesh {
     }
 }
 
-/// Reads an ASCII or binary STL file.
+/// Reads an ASCII or binary STL file (default triangle limit).
 pub fn read_stl(path: &Path) -> Result<Mesh, SliceError> {
-    let bytes = std::fs::read(path).map_err(|e| SliceError::read(path, e))?;
-    let mut cursor = std::io::Cursor::new(bytes);
+    let max = super::Limits::default().max_triangles;
+    read_stl_limited(path, max, max)
+}
+
+/// Reads an STL, streaming it from the file, and refuses it once it holds more than
+/// `left` triangles (`limit` is the `--max-triangles` value, for the message).
+pub fn read_stl_limited(path: &Path, left: u64, limit: u64) -> Result<Mesh, SliceError> {
+    let file = std::fs::File::open(path).map_err(|e| SliceError::read(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
     let bad = |e: std::io::Error| SliceError::Stl {
         path: path.to_path_buf(),
         reason: one_line(&e.to_string()),
     };
-    let reader = stl_io::create_stl_reader(&mut cursor).map_err(bad)?;
+    let stl = stl_io::create_stl_reader(&mut reader).map_err(bad)?;
     let mut tris = Vec::new();
-    for t in reader {
+    for t in stl {
         let t = t.map_err(bad)?;
+        if tris.len() as u64 >= left {
+            return Err(SliceError::Option(format!(
+                "{}: more than {limit} triangles (all bodies together) exceeds the limit \
+                 (--max-triangles raises it)",
+                path.display()
+            )));
+        }
         tris.push([t.vertices[0].0, t.vertices[1].0, t.vertices[2].0]);
     }
     Mesh::from_triangles(path, &tris)

@@ -41,6 +41,41 @@ pub struct SliceOptions {
     pub min_run_mm: f64,
     /// Show progress bars (only ever drawn on a terminal).
     pub progress: bool,
+    /// Resource limits, checked before anything that size is allocated.
+    pub limits: Limits,
+}
+
+/// What one slice may use, checked before allocating; each is a `dollop slice --max-...`
+/// option. The defaults keep peak memory near 1 GiB at most.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Image pixels (width x height, before and after rotation; 4 bytes each as RGBA).
+    pub max_pixels: u64,
+    /// Print runs in the whole design (layers x rows x runs): about the job's segments.
+    pub max_segments: u64,
+    /// Mesh triangles, all bodies together, after 3MF components are expanded.
+    pub max_triangles: u64,
+    /// Uncompressed size of a 3MF's parts (its XML), bytes.
+    pub max_3mf_bytes: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_pixels: 50_000_000,
+            max_segments: 2_000_000,
+            max_triangles: 5_000_000,
+            max_3mf_bytes: 128 << 20,
+        }
+    }
+}
+
+/// The refusal for `what` = `got` above the limit set by `flag`.
+pub fn over_limit(name: &str, what: &str, got: u64, limit: u64, flag: &str) -> SliceError {
+    SliceError::Option(format!(
+        "{name}: {what} {got} exceeds the limit of {limit} by {} ({flag} raises it)",
+        got.saturating_sub(limit)
+    ))
 }
 
 impl Default for SliceOptions {
@@ -51,6 +86,7 @@ impl Default for SliceOptions {
             path: PathOptions::default(),
             min_run_mm: 0.1,
             progress: false,
+            limits: Limits::default(),
         }
     }
 }
@@ -186,16 +222,12 @@ pub fn load_design(
                     paths.len()
                 )));
             }
-            let img = image::load(first)?;
-            image::slice_image(
-                &img,
-                &first.display().to_string(),
-                &opts.image,
-                pitch,
-                opts.layers.unwrap_or(1),
-                inlets,
-                opts.min_run_mm,
-            )
+            let img = image::load_limited(first, opts.limits.max_pixels)?;
+            let name = first.display().to_string();
+            let d =
+                image::slice_image(&img, &name, &opts.image, pitch, 1, inlets, opts.min_run_mm)?;
+            // The layers are copies of one: check their total before making them.
+            stack_layers(d, opts.layers.unwrap_or(1), &opts.limits, &name)
         }
         DesignKind::ThreeMf => {
             if paths.len() > 1 {
@@ -205,7 +237,7 @@ pub fn load_design(
                     paths.len()
                 )));
             }
-            let meshes = threemf::read_3mf(first)?;
+            let meshes = threemf::read_3mf_limited(first, &opts.limits)?;
             if meshes.len() > inlets {
                 return Err(SliceError::TooManyMaterials {
                     what: first.display().to_string(),
@@ -236,13 +268,41 @@ pub fn load_design(
                     hint: " (one STL per material, in inlet order)",
                 });
             }
-            let meshes = paths
-                .iter()
-                .map(|p| mesh::read_stl(p))
-                .collect::<Result<Vec<_>, _>>()?;
+            let mut left = opts.limits.max_triangles;
+            let mut meshes = Vec::with_capacity(paths.len());
+            for p in paths {
+                let m = mesh::read_stl_limited(p, left, opts.limits.max_triangles)?;
+                left -= m.triangles.len() as u64;
+                meshes.push(m);
+            }
             slice_meshes(&meshes, config, opts, pitch)
         }
     }
+}
+
+/// `layers` copies of the design's one layer, refused before allocating when the runs
+/// in all of them would pass `--max-segments`.
+fn stack_layers(
+    mut d: design::Design,
+    layers: usize,
+    limits: &Limits,
+    name: &str,
+) -> Result<design::Design, SliceError> {
+    let per = d.layers.first().map_or(0, |l| l.runs().len() as u64).max(1);
+    let total = per.saturating_mul(layers as u64);
+    if total > limits.max_segments {
+        return Err(over_limit(
+            name,
+            &format!("{layers} layers x {per} runs ="),
+            total,
+            limits.max_segments,
+            "--max-segments",
+        ));
+    }
+    if let Some(l) = d.layers.first().cloned() {
+        d.layers = vec![l; layers.max(1)];
+    }
+    Ok(d)
 }
 
 fn slice_meshes(
@@ -259,6 +319,7 @@ fn slice_meshes(
             max_layers: opts.layers,
             min_run_mm: opts.min_run_mm,
             progress: opts.progress,
+            max_segments: opts.limits.max_segments,
         },
     )
 }

@@ -1,10 +1,214 @@
 //! Writing outputs so that nothing half-written is ever left: each file is written to a
-//! temporary file in the destination's directory and renamed over it only once complete.
-//! Also the progress bars, shown on a terminal and silent when stderr is piped.
+//! temporary file in the destination's directory and renamed over it only once complete;
+//! a command with several outputs stages them all first and renames them together
+//! ([`Outputs`]), so a failure on one leaves none. Existing symlinks, FIFOs, devices and
+//! directories at an output path are refused rather than replaced. Temporary files are
+//! registered so that Ctrl-C removes them. Also the progress bars, shown on a terminal
+//! and silent when stderr is piped.
 
 use super::error::SliceError;
 use std::io::{BufWriter, IsTerminal, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, Once};
+
+/// Temporary files in flight, removed by the Ctrl-C handler.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static HANDLER: Once = Once::new();
+
+/// Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+const INTERRUPTED: i32 = 130;
+
+fn register(p: &Path) {
+    HANDLER.call_once(|| {
+        // Another handler (the link commands' pause on Ctrl-C) may own the signal; those
+        // commands write no outputs, so failing to install is harmless.
+        let _ = ctrlc::set_handler(|| {
+            remove_pending();
+            eprintln!("dollop: interrupted; temporary files removed, nothing written");
+            std::process::exit(INTERRUPTED);
+        });
+    });
+    if let Ok(mut v) = PENDING.lock() {
+        v.push(p.to_path_buf());
+    }
+}
+
+fn unregister(p: &Path) {
+    if let Ok(mut v) = PENDING.lock() {
+        v.retain(|x| x != p);
+    }
+}
+
+/// Removes every temporary file in flight (what Ctrl-C does before exiting).
+pub fn remove_pending() {
+    if let Ok(mut v) = PENDING.lock() {
+        for p in v.drain(..) {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// Temporary files in flight (for tests).
+pub fn pending() -> Vec<PathBuf> {
+    PENDING.lock().map(|v| v.clone()).unwrap_or_default()
+}
+
+/// The I/O error without the temporary file's path, which the `tempfile` crate puts in
+/// its messages: the user should see their own file named, not `.dollop-XXXX.part`.
+fn plain(e: std::io::Error) -> std::io::Error {
+    if let Some(code) = e.raw_os_error() {
+        return std::io::Error::from_raw_os_error(code);
+    }
+    // tempfile wraps the OS error in its own error carrying the path; unwrap it.
+    let code = e
+        .get_ref()
+        .and_then(|inner| inner.source())
+        .and_then(|src| src.downcast_ref::<std::io::Error>())
+        .and_then(std::io::Error::raw_os_error);
+    match code {
+        Some(code) => std::io::Error::from_raw_os_error(code),
+        None if e.to_string().contains(".part") => std::io::Error::from(e.kind()),
+        None => e,
+    }
+}
+
+/// Refuses to replace anything but a regular file: writing "over" a symlink, FIFO or
+/// device would either follow it somewhere unexpected or destroy it.
+pub fn check_target(path: &Path) -> std::io::Result<()> {
+    let meta = match std::fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(plain(e)),
+    };
+    let ft = meta.file_type();
+    if ft.is_file() {
+        return Ok(());
+    }
+    let what = if ft.is_symlink() {
+        "a symbolic link"
+    } else if ft.is_dir() {
+        "a directory"
+    } else {
+        kind_of_special(&ft)
+    };
+    Err(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!("is {what}; dollop only replaces regular files (remove it or choose another path)"),
+    ))
+}
+
+#[cfg(unix)]
+fn kind_of_special(ft: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if ft.is_fifo() {
+        "a FIFO"
+    } else if ft.is_char_device() || ft.is_block_device() {
+        "a device"
+    } else if ft.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
+#[cfg(not(unix))]
+fn kind_of_special(_: &std::fs::FileType) -> &'static str {
+    "not a regular file"
+}
+
+/// One staged output: complete in its temporary file, not yet renamed.
+struct Staged {
+    path: PathBuf,
+    tmp: tempfile::TempPath,
+}
+
+/// Outputs written together or not at all: [`Outputs::stage`] each (a temporary file
+/// beside the destination, written and synced), then [`Outputs::commit`] renames them
+/// all. Dropping it uncommitted removes the temporary files.
+#[derive(Default)]
+pub struct Outputs {
+    staged: Vec<Staged>,
+}
+
+impl Outputs {
+    /// No outputs yet.
+    pub fn new() -> Self {
+        Outputs::default()
+    }
+
+    /// Writes `path`'s content through `fill` into a temporary file beside it. Errors are
+    /// the I/O error as it is, without the temporary name.
+    pub fn stage(
+        &mut self,
+        path: &Path,
+        fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        check_target(path)?;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".dollop-")
+            .suffix(".part")
+            .tempfile_in(dir)
+            .map_err(plain)?;
+        let (mut file, tmp) = tmp.into_parts();
+        register(&tmp);
+        // From here the TempPath removes the file on any early return.
+        let staged = Staged {
+            path: path.to_path_buf(),
+            tmp,
+        };
+        let result = (|| {
+            {
+                let mut w = BufWriter::new(&mut file);
+                fill(&mut w)?;
+                w.flush()?;
+            }
+            // Temporary files are private (0600); outputs are ordinary files.
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let mode =
+                    std::fs::metadata(path).map_or(0o644, |m| m.permissions().mode() & 0o7777);
+                file.set_permissions(std::fs::Permissions::from_mode(mode))?;
+            }
+            file.sync_all()
+        })();
+        if let Err(e) = result {
+            unregister(&staged.tmp);
+            return Err(plain(e));
+        }
+        self.staged.push(staged);
+        Ok(())
+    }
+
+    /// Renames every staged file over its destination. On failure, names the output.
+    pub fn commit(mut self) -> Result<(), (PathBuf, std::io::Error)> {
+        // Check every destination again before the first rename, so a refusal leaves all.
+        for s in &self.staged {
+            check_target(&s.path).map_err(|e| (s.path.clone(), e))?;
+        }
+        for s in self.staged.drain(..) {
+            let Staged { path, tmp } = s;
+            let name = tmp.to_path_buf();
+            let r = tmp.persist(&path);
+            unregister(&name);
+            r.map_err(|e| (path.clone(), plain(e.error)))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        for s in &self.staged {
+            unregister(&s.tmp);
+        }
+        // The TempPaths remove their files as they drop.
+    }
+}
 
 /// Writes `path` through `fill`, atomically: on any error the destination is untouched
 /// and the temporary file is removed.
@@ -23,35 +227,32 @@ pub fn write_file_atomically(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".dollop-")
-        .suffix(".part")
-        .tempfile_in(dir)?;
-    {
-        let mut w = BufWriter::new(tmp.as_file_mut());
-        fill(&mut w)?;
-        w.flush()?;
-    }
-    // Temporary files are private (0600); outputs are ordinary files.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path).map_or(0o644, |m| m.permissions().mode() & 0o7777);
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(mode))?;
-    }
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| e.error)?;
-    Ok(())
+    let mut out = Outputs::new();
+    out.stage(path, fill)?;
+    out.commit().map_err(|(_, e)| e)
 }
 
 /// Writes `bytes` to `path` atomically.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), SliceError> {
     write_atomic(path, |w| w.write_all(bytes))
+}
+
+/// Stages `path` in `out`, with the slicer's error naming the user's file.
+pub fn stage(
+    out: &mut Outputs,
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), SliceError> {
+    out.stage(path, fill).map_err(|source| SliceError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Commits `out`, with the slicer's error naming the user's file.
+pub fn commit(out: Outputs) -> Result<(), SliceError> {
+    out.commit()
+        .map_err(|(path, source)| SliceError::Write { path, source })
 }
 
 /// A progress bar of `len` steps labelled `what`: drawn on stderr when it is a terminal,
@@ -89,5 +290,54 @@ mod tests {
         write_bytes(&path, b"whole").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"whole");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(pending().iter().all(|p| !p.starts_with(dir.path())));
+    }
+
+    #[test]
+    fn outputs_are_all_written_or_none_and_errors_name_the_users_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.dlp");
+        let b = dir.path().join("missing").join("b.png");
+        let mut out = Outputs::new();
+        out.stage(&a, |w| w.write_all(b"job")).unwrap();
+        let e = stage(&mut out, &b, |w| w.write_all(b"png")).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("{}: cannot write", b.display())),
+            "{msg}"
+        );
+        assert!(!msg.contains(".part"), "{msg}");
+        drop(out);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlinks_and_fifos_are_refused_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("real");
+        std::fs::write(&target, b"keep").unwrap();
+        let link = dir.path().join("link.dlp");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let e = write_bytes(&link, b"new").unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&target).unwrap(), b"keep");
+        let e = write_bytes(Path::new("/dev/null"), b"x")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a device"), "{e}");
+        let fifo = dir.path().join("fifo");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            let e = write_bytes(&fifo, b"x").unwrap_err().to_string();
+            assert!(e.contains("a FIFO"), "{e}");
+        }
     }
 }

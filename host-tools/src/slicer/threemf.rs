@@ -144,8 +144,88 @@ fn collect(
     Ok(())
 }
 
-/// Reads a 3MF file into one body per material, in material order (inlet order).
+/// Reads a 3MF file with the default limits.
 pub fn read_3mf(path: &Path) -> Result<Vec<Mesh>, SliceError> {
+    read_3mf_limited(path, &super::Limits::default())
+}
+
+/// Decompresses each model part of the package (counting, not keeping, the bytes) and
+/// refuses the file when they pass `max`: the parser holds about three times its XML in
+/// memory, and a 2 MB file can hold 2 GB of whitespace. Counting the real output, not
+/// the sizes the package declares, is what a hostile file cannot lie about.
+fn check_xml_size(path: &Path, max: u64) -> Result<(), SliceError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| SliceError::read(path, e))?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file))
+        .map_err(|e| bad(path, one_line(&e.to_string())))?;
+    let mut total = 0u64;
+    for i in 0..zip.len() {
+        let entry = zip
+            .by_index(i)
+            .map_err(|e| bad(path, one_line(&e.to_string())))?;
+        let is_model = entry.name().is_ok_and(|n| n.ends_with(".model"));
+        if !is_model {
+            continue;
+        }
+        let left = max.saturating_sub(total);
+        let n = std::io::copy(&mut entry.take(left + 1), &mut std::io::sink())
+            .map_err(|e| bad(path, one_line(&e.to_string())))?;
+        total += n;
+        if total > max {
+            return Err(SliceError::Option(format!(
+                "{}: its model XML is more than the limit of {} MiB (--max-3mf-mb raises it)",
+                path.display(),
+                max >> 20
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Triangles `object` expands to, components included (memoised per object: components
+/// ten wide and nine deep are 10^9 triangles from a file of a few hundred bytes, which
+/// must be counted, not built). Saturates instead of overflowing.
+fn expanded(
+    path: &Path,
+    model: &Model,
+    object: &Object,
+    depth: usize,
+    memo: &mut BTreeMap<usize, u64>,
+) -> Result<u64, SliceError> {
+    if let Some(&n) = memo.get(&object.id) {
+        return Ok(n);
+    }
+    if depth > MAX_DEPTH {
+        return Err(bad(
+            path,
+            format!("components nest deeper than {MAX_DEPTH} levels (or refer to themselves)"),
+        ));
+    }
+    let mut n = object
+        .mesh
+        .as_ref()
+        .map_or(0, |m| m.triangles.triangle.len() as u64);
+    if let Some(c) = &object.components {
+        for comp in &c.component {
+            if let Some(child) = model
+                .resources
+                .object
+                .iter()
+                .find(|o| o.id == comp.objectid)
+            {
+                n = n.saturating_add(expanded(path, model, child, depth + 1, memo)?);
+            }
+        }
+    }
+    memo.insert(object.id, n);
+    Ok(n)
+}
+
+/// Reads a 3MF file into one body per material, in material order (inlet order),
+/// refusing it before parsing when its XML passes `limits.max_3mf_bytes`, and before
+/// expanding components when its triangles would pass `limits.max_triangles`.
+pub fn read_3mf_limited(path: &Path, limits: &super::Limits) -> Result<Vec<Mesh>, SliceError> {
+    check_xml_size(path, limits.max_3mf_bytes)?;
     let file = std::fs::File::open(path).map_err(|e| SliceError::read(path, e))?;
     let models = threemf::read(std::io::BufReader::new(file)).map_err(|e| {
         // The crate's own words are generic ("Deserialization error ..."); the cause says
@@ -153,6 +233,29 @@ pub fn read_3mf(path: &Path) -> Result<Vec<Mesh>, SliceError> {
         let cause = std::error::Error::source(&e).map_or(String::new(), |c| format!(": {c}"));
         bad(path, one_line(&format!("{e}{cause}")))
     })?;
+    let mut total = 0u64;
+    for model in &models {
+        let mut memo = BTreeMap::new();
+        for item in &model.build.item {
+            if let Some(object) = model
+                .resources
+                .object
+                .iter()
+                .find(|o| o.id == item.objectid)
+            {
+                total = total.saturating_add(expanded(path, model, object, 0, &mut memo)?);
+            }
+        }
+    }
+    if total > limits.max_triangles {
+        return Err(super::over_limit(
+            &path.display().to_string(),
+            "triangles after expanding components:",
+            total,
+            limits.max_triangles,
+            "--max-triangles",
+        ));
+    }
     // Key: (material index, or build order for files without materials) -> triangles.
     let mut bodies: BTreeMap<usize, (String, Vec<Tri>)> = BTreeMap::new();
     let mut item_no = 0usize;

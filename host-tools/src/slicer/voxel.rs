@@ -2,9 +2,13 @@
 //! line by casting a ray along X through every body (one body per material). Triangles are
 //! bucketed by the layers they span, so a ray only meets the triangles that cut its layer,
 //! and within a layer each triangle's section is crossed only with the rows it spans.
-//! Inside is decided by crossing parity with half-open rules computed identically for
-//! shared edges, so closed bodies give consistent runs and bodies that share a surface
-//! touch without overlapping. Overlaps between bodies are refused.
+//! Inside is decided by the nonzero winding rule (as mature slicers do): each crossing
+//! counts +1 where the ray enters through a face and -1 where it leaves, by the face's
+//! orientation, so a body that intersects itself or holds several overlapping shells is
+//! filled where any shell covers it, never holed where two overlap (parity would hole
+//! it); an inward-facing shell inside another is a cavity. Half-open rules computed
+//! identically for shared edges keep closed bodies consistent and bodies that share a
+//! surface touching without overlapping. Overlaps between bodies are refused.
 
 use super::design::{Design, Layer, Run, TOUCH_MM};
 use super::error::SliceError;
@@ -24,6 +28,8 @@ pub struct MeshOptions {
     pub min_run_mm: f64,
     /// Show a progress bar (on a terminal only).
     pub progress: bool,
+    /// Most runs (about print segments) in the whole design; refused past it.
+    pub max_segments: u64,
 }
 
 /// A triangle's vertices in f64 (exact from f32), for one layer's work.
@@ -88,10 +94,11 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     } else {
         indicatif::ProgressBar::hidden()
     };
-    let mut crossings: Vec<Vec<(u32, f64)>> = vec![Vec::new(); meshes.len()];
+    let mut crossings: Vec<Vec<(u32, f64, i8)>> = vec![Vec::new(); meshes.len()];
     let mut intervals: Vec<(f64, f64, u8)> = Vec::new();
     let mut row_runs: Vec<Run> = Vec::new();
     let mut out_layers = Vec::with_capacity(layers_n);
+    let mut total_runs = 0u64;
     for k in 0..layers_n {
         let z = z_of(k);
         for (b, body) in bodies.iter().enumerate() {
@@ -100,11 +107,16 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
             let ts = &body.tris[body.start[k] as usize..body.start[k + 1] as usize];
             for &t in ts {
                 let tri = tri_f64(body.mesh, t);
+                let sign = winding_sign(&tri);
+                if sign == 0 {
+                    continue;
+                }
                 if let Some((p, q)) = section(&tri, z) {
-                    cross_rows(p, q, lo[1], pitch, rows, cx);
+                    cross_rows(p, q, lo[1], pitch, rows, sign, cx);
                 }
             }
-            cx.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+            // Entries before exits at the same x, so touching shells join.
+            cx.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(b.2.cmp(&a.2)));
         }
         let mut layer = Layer::new();
         let mut next = vec![0usize; meshes.len()];
@@ -118,17 +130,25 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
                 }
                 next[b] = i1;
                 let xs = &cx[i0..i1];
-                if !xs.len().is_multiple_of(2) {
+                // Inside wherever the winding number is not zero.
+                let mut w = 0i32;
+                let mut start = 0.0;
+                for &(_, x, sign) in xs {
+                    let before = w;
+                    w += sign as i32;
+                    if before == 0 && w != 0 {
+                        start = x;
+                    } else if before != 0 && w == 0 && x - start > TOUCH_MM {
+                        intervals.push((start, x, b as u8));
+                    }
+                }
+                if w != 0 {
+                    // A closed, consistently oriented body always winds back to zero.
                     return Err(SliceError::NonManifold {
                         path: meshes[b].path.clone(),
                         edges: 1,
                         at: [xs[0].1, y_of(r), z],
                     });
-                }
-                for pair in xs.chunks_exact(2) {
-                    if pair[1].1 - pair[0].1 > TOUCH_MM {
-                        intervals.push((pair[0].1, pair[1].1, b as u8));
-                    }
                 }
             }
             intervals.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
@@ -154,6 +174,16 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
                 });
             }
             layer.push_row(&mut row_runs, opts.min_run_mm);
+        }
+        total_runs += layer.runs().len() as u64;
+        if total_runs > opts.max_segments {
+            return Err(super::over_limit(
+                &name,
+                &format!("runs in the first {} of {layers_n} layers:", k + 1),
+                total_runs,
+                opts.max_segments,
+                "--max-segments (or --layers)",
+            ));
         }
         out_layers.push(layer);
         bar.inc(1);
@@ -255,7 +285,24 @@ fn section(t: &Tri, z: f64) -> Option<([f64; 2], [f64; 2])> {
     (n == 2).then_some((pts[0], pts[1]))
 }
 
-/// Adds the X where segment pq crosses each row's centre line (half-open in y as above).
+/// +1 when a ray along +X enters the body through this triangle (its outward normal
+/// points toward -X), -1 when it leaves, 0 for a face parallel to X (never crossed).
+#[inline]
+fn winding_sign(t: &Tri) -> i8 {
+    let u = [t[1][1] - t[0][1], t[1][2] - t[0][2]];
+    let v = [t[2][1] - t[0][1], t[2][2] - t[0][2]];
+    let nx = u[0] * v[1] - u[1] * v[0];
+    if nx < 0.0 {
+        1
+    } else if nx > 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// Adds the X where segment pq crosses each row's centre line (half-open in y as above),
+/// with the crossing's winding `sign`.
 #[inline]
 fn cross_rows(
     p: [f64; 2],
@@ -263,7 +310,8 @@ fn cross_rows(
     y0: f64,
     pitch: f64,
     rows: usize,
-    out: &mut Vec<(u32, f64)>,
+    sign: i8,
+    out: &mut Vec<(u32, f64, i8)>,
 ) {
     let (p, q) = if (p[1], p[0]) <= (q[1], q[0]) {
         (p, q)
@@ -280,7 +328,7 @@ fn cross_rows(
         let y = y0 + (r as f64 + 0.5) * pitch;
         if p[1] < y && y <= q[1] {
             let x = p[0] + (q[0] - p[0]) * (y - p[1]) / (q[1] - p[1]);
-            out.push((r as u32, x));
+            out.push((r as u32, x, sign));
         }
     }
 }
@@ -298,6 +346,7 @@ mod tests {
             max_layers: None,
             min_run_mm: 0.0,
             progress: false,
+            max_segments: u64::MAX,
         }
     }
 
@@ -362,5 +411,34 @@ mod tests {
         let b = shapes::cuboid(Path::new("b.stl"), [5.0, 0.0, 0.0], [15.0, 10.0, 10.0]);
         let d = slice_meshes(&[a, b], &opts()).unwrap();
         assert_eq!(d.layers[0].row(0).len(), 2);
+    }
+
+    #[test]
+    fn self_intersecting_shells_are_filled_by_the_nonzero_rule_not_holed() {
+        // One body of two overlapping boxes (each closed and outward): parity would
+        // leave the 4 mm overlap hollow; the winding rule fills the union, 0 to 14 mm.
+        let mut m = shapes::cuboid(Path::new("two.stl"), [0.0; 3], [10.0, 10.0, 6.0]);
+        shapes::add_cuboid(&mut m, [6.0, 0.0, 0.0], [14.0, 10.0, 6.0]);
+        let d = slice_meshes(&[m], &opts()).unwrap();
+        for l in &d.layers {
+            for r in 0..l.rows() {
+                let row = l.row(r);
+                assert_eq!(row.len(), 1, "row {r} is holed: {row:?}");
+                assert!(
+                    row[0].x0.abs() < 1e-9 && (row[0].x1 - 14.0).abs() < 1e-9,
+                    "{row:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn an_inward_shell_inside_a_body_is_a_cavity() {
+        let p = [Path::new("shell.stl"), Path::new("ball.stl")];
+        let [shell, _] = shapes::box_with_sphere(p, [0.0; 3], [20.0; 3], 6.0, 4_000);
+        let d = slice_meshes(&[shell], &opts()).unwrap();
+        let l = &d.layers[d.layers.len() / 2];
+        let mid = l.row(l.rows() / 2);
+        assert_eq!(mid.len(), 2, "the cavity is missing: {mid:?}");
     }
 }
