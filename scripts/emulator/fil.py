@@ -53,6 +53,8 @@ ESTOP_BIT = 13  # PC13, high = stop
 STORE_BASE, STORE_LEN, SECTOR = 0x08040000, 0xC0000, 0x20000
 EXTI_PR = 0x40013C14
 NVIC_ISPR = 0xE000E200
+IWDG_KR = 0x40003000
+IWDG_PR = 0x40003004  # PR and RLR (8 bytes)
 EXTI15_10_IRQ = 40
 UART4_IRQ = 52
 UART4_SERIAL_INDEX = 3  # usart_addr[3] = 0x40004C00 in QEMU's stm32f405_soc.c
@@ -282,6 +284,25 @@ class Board:
         self.t_running = 0.0  # axis -> true position where homing turned back (the firmware's home)
         self.homing_hit = {}
 
+    def on_watchdog_write(self, regname, value, t):
+        """The watchdog is reconfigured (unlock, PR, RLR) around each flash erase. A feed
+        from the control loop between the unlock and the RLR write would lock the
+        registers again and drop the change without a word: at each PR write (after the
+        unlock) the harness pends the control loop's interrupt and watches the key
+        register until the RLR write. With the writes inside a critical section the
+        control loop runs only after them; without, it feeds in between."""
+        if regname == "PR":
+            self.wdg_cfg.append(("PR", value, t))
+            self.wdg_window = True
+            self.emu.watch(IWDG_KR, 4, self.emu.on_model_access)
+            self.emu.poke(NVIC_ISPR + 4 * (E.UART5_IRQ // 32), 1 << (E.UART5_IRQ % 32))
+        elif regname == "RLR":
+            self.wdg_cfg.append(("RLR", value, t))
+            self.wdg_window = False
+            self.emu.unwatch(IWDG_KR, 4)
+        elif regname == "KR" and self.wdg_window and value == 0xAAAA:
+            self.wdg_feeds_in_window += 1
+
     def usb_workaround(self):
         """The firmware's EitherPort (src/device/serve.rs) reads USB and the UART with
         `select(usb.read, uart.read)`; with no USB host, embassy's OUT endpoint read
@@ -337,6 +358,12 @@ class Board:
         emu.watches[(STORE_BASE, STORE_LEN)] = self.on_store
         emu.on_write_orig = emu.on_write
         emu.on_write = self.on_model_write
+        # The watchdog's prescaler and reload (written only when it is reconfigured: around
+        # each flash erase of an upload), for check_watchdog_around_erases.
+        self.wdg_cfg = []
+        self.wdg_window = False
+        self.wdg_feeds_in_window = 0
+        emu.watch(IWDG_PR, 8, emu.on_model_access)
         self.apply_inputs()
         emu.limit_warp(False)
 
@@ -486,6 +513,8 @@ class Board:
 
     def on_model_write(self, periph, regname, value, t):
         self.emu.on_write_orig(periph, regname, value, t)
+        if periph == "IWDG":
+            self.on_watchdog_write(regname, value, t)
         if periph == "FLASH" and regname == "CR":
             cr = self.emu.chip.values.get(0x40023C10, 0)
             if cr & (1 << 16) and cr & 2:
@@ -894,12 +923,27 @@ def check_print(res):
                     res["stops"] / max(res["wall"], 1e-9), len(b.log.edges))))
     out.append(("no fault, Late or Underrun", not b.faults and "Underrun" not in res["host"] and "Late" not in res["host"],
                 "; ".join("%s at %.3f s: %s" % (f[0], f[1] / 1e9, f[2]) for f in b.faults) or "none (halt reasons come over the link)"))
+    out.append(check_watchdog_around_erases(b))
     s = res["summary"]
     out.append(("pins match the simulator", res["ok"],
                 "%d valve changes, worst offset %.3f ms, worst axis %+d steps at a change, final X/Y/Z %s steps%s" % (
                     s["changes"], s["worst_ms"], s["worst_steps"], s["final"],
                     "; " + "; ".join(res["lines"]) if res["lines"] else "")))
     return out
+
+
+def check_watchdog_around_erases(b):
+    """The upload's erase ran under the long timeout (PR /256, RLR 1500: 8.2 s at LSI's
+    fastest) and the normal one came back after (PR /32, RLR 250), and no feed landed
+    between an unlock and its reload write although the control loop was pended there."""
+    cfg = b.wdg_cfg
+    pairs = [(cfg[i][1], cfg[i + 1][1]) for i in range(len(cfg) - 1) if cfg[i][0] == "PR" and cfg[i + 1][0] == "RLR"]
+    long_then_normal = any(p == (6, 1500) for p in pairs) and pairs[-1:] == [(3, 250)]
+    ok = long_then_normal and b.wdg_feeds_in_window == 0
+    return ("watchdog around flash erases", ok,
+            "%d reconfigurations (PR, RLR): %s; control loop pended after each unlock: %d feed(s) "
+            "between an unlock and its reload write" % (
+                len(pairs), ", ".join("(%d, %d)" % p for p in pairs) or "none", b.wdg_feeds_in_window))
 
 
 def last_line(text):
@@ -1052,7 +1096,7 @@ def run(image, args, log_dir, results):
             res = scenario_print(image, args, log_dir, machine, boards, rows)
             results.extend(check_print(res))
             s = res["summary"]
-            if all(r[1] for r in results[-3:]):
+            if all(r[1] for r in results[-4:]):
                 summary = "firmware in the loop: %d valve changes, worst offset %.3f ms, steps %s" % (
                     s["changes"], abs(s["worst_ms"]), "equal" if s["steps_equal"] else "DIFFER")
             finish(boards)
