@@ -210,15 +210,7 @@ fn nothing_moves_or_opens_while_an_upload_writes_the_store() {
     assert_eq!(b.out.valves, 0);
     assert!(Refusal::Uploading.to_string().contains("wait"));
     // Finishing the upload lifts the rule.
-    for (i, c) in body.chunks(MAX_CHUNK).enumerate().skip(1) {
-        h.ok(
-            &mut b,
-            &Request::Chunk {
-                offset: (i * MAX_CHUNK) as u32,
-                data: c,
-            },
-        );
-    }
+    h.chunks(&mut b, &body, 1);
     h.ok(&mut b, &Request::EndJob);
     h.wait(&mut b, |s| matches!(s.job, JobSlot::Ready { .. }));
     h.ok(

@@ -204,15 +204,7 @@ impl Host {
     pub fn upload(&mut self, b: &mut Board, h: &JobHeader, body: &[u8]) {
         self.ok(b, &Request::BeginJob(h.clone()));
         b.advance(1000);
-        for (i, c) in body.chunks(MAX_CHUNK).enumerate() {
-            self.ok(
-                b,
-                &Request::Chunk {
-                    offset: (i * MAX_CHUNK) as u32,
-                    data: c,
-                },
-            );
-        }
+        self.chunks(b, body, 0);
         self.ok(b, &Request::EndJob);
         for _ in 0..1000 {
             b.advance(1000);
@@ -223,6 +215,19 @@ impl Host {
             }
         }
         panic!("job never checked");
+    }
+
+    /// Sends `body` in chunks from chunk number `first` on, each acknowledged.
+    pub fn chunks(&mut self, b: &mut Board, body: &[u8], first: usize) {
+        for (i, c) in body.chunks(MAX_CHUNK).enumerate().skip(first) {
+            self.ok(
+                b,
+                &Request::Chunk {
+                    offset: (i * MAX_CHUNK) as u32,
+                    data: c,
+                },
+            );
+        }
     }
 
     /// Homes and waits until homed.
