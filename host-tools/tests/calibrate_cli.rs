@@ -156,3 +156,17 @@ fn out_without_a_fragment_says_why_and_writes_nothing() {
     assert!(e.to_string().contains("--target-width"), "{e}");
     assert!(!out.exists());
 }
+
+#[test]
+fn a_smoothing_window_that_cannot_smooth_is_refused() {
+    for w in ["0", "1", "4", "103", "seven"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_dollop"))
+            .args(["calibrate", "camera", arg(&data().join("camera"))])
+            .args(["--fps", "30", "--mm-per-px", "0.02", "--window", w])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--window {w} was accepted");
+        assert!(err.contains("odd number of frames from 3 to 101"), "{err}");
+    }
+}

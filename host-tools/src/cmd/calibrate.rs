@@ -120,6 +120,17 @@ fn parse_roi(s: &str) -> Result<Roi, String> {
     }
 }
 
+/// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
+/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away).
+fn parse_window(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(w) if (3..=101).contains(&w) && w % 2 == 1 => Ok(w),
+        _ => Err(format!(
+            "{s:?}: the window is an odd number of frames from 3 to 101"
+        )),
+    }
+}
+
 #[derive(clap::Args, Debug)]
 struct CameraArgs {
     /// Folder of frames (.png/.jpg/.bmp, in file-name order), filament moving down.
@@ -142,8 +153,8 @@ struct CameraArgs {
     /// Measure only inside this rectangle, px (e.g. below the nozzle tip).
     #[arg(long, value_name = "X,Y,W,H", value_parser = parse_roi)]
     roi: Option<Roi>,
-    /// Savitzky-Golay window, frames (odd).
-    #[arg(long, default_value_t = 7)]
+    /// Savitzky-Golay window, frames (odd, 3 to 101).
+    #[arg(long, default_value_t = 7, value_parser = parse_window)]
     window: usize,
     #[command(flatten)]
     output: Output,
