@@ -124,7 +124,7 @@ fn parse_roi(s: &str) -> Result<Roi, String> {
 /// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away).
 fn parse_window(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
-        Ok(w) if (3..=101).contains(&w) && w % 2 == 1 => Ok(w),
+        Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
         _ => Err(format!(
             "{s:?}: the window is an odd number of frames from 3 to 101"
         )),
