@@ -73,8 +73,7 @@ pub struct ControlCtx {
     pub estop: Input<'static>,
     /// Status LED (high = on).
     pub led: Output<'static>,
-    last_ticks: u32,
-    now_us: u64,
+    clock: step::Clock,
     periods: u32,
     blink: u32,
 }
@@ -94,8 +93,7 @@ impl ControlCtx {
             endstops,
             estop,
             led,
-            last_ticks: step::TICKS.load(Ordering::Acquire),
-            now_us: 0,
+            clock: step::Clock::new(),
             periods: 0,
             blink: 0,
         }
@@ -103,9 +101,7 @@ impl ControlCtx {
 
     /// One control period.
     pub fn on_period(&mut self) {
-        let t = step::TICKS.load(Ordering::Acquire);
-        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * step::TICK_US;
-        self.last_ticks = t;
+        let now_us = self.clock.now_us();
         let inputs = Inputs {
             estop: ESTOP_LATCH.swap(false, Ordering::AcqRel) || self.estop.is_high(),
             endstops: [
@@ -118,9 +114,7 @@ impl ControlCtx {
             out: &mut self.out,
             latch: &ESTOP_LATCH,
         };
-        let tick = self
-            .control
-            .tick(self.now_us, inputs, &mut ControlEnd, &mut out);
+        let tick = self.control.tick(now_us, inputs, &mut ControlEnd, &mut out);
         if tick.feed_watchdog {
             wdg::feed();
         }

@@ -27,27 +27,21 @@ pub fn millisecond() {
 
 /// The link's pace: the control loop's milliseconds, and the step clock for time.
 pub struct Millis {
-    last_ticks: u32,
-    now_us: u64,
+    clock: step::Clock,
 }
 
 impl Millis {
     /// A pace starting now.
     pub fn new() -> Self {
         Millis {
-            last_ticks: step::TICKS.load(Ordering::Acquire),
-            now_us: 0,
+            clock: step::Clock::new(),
         }
     }
 }
 
 impl Pace for Millis {
     fn now_us(&mut self) -> u64 {
-        // The 32-bit tick count wraps after 11.9 h; the difference does not.
-        let t = step::TICKS.load(Ordering::Acquire);
-        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * step::TICK_US;
-        self.last_ticks = t;
-        self.now_us
+        self.clock.now_us()
     }
     async fn tick(&mut self) {
         let start = MILLIS.load(Ordering::Acquire);

@@ -18,6 +18,31 @@ pub static TICKS: AtomicU32 = AtomicU32::new(0);
 /// Microseconds per step tick.
 pub const TICK_US: u64 = 1_000_000 / crate::board::STEP_TICK_HZ as u64;
 
+/// Microseconds since it was made, on the step clock: the 32-bit tick count wraps after
+/// 11.9 h, the differences it takes do not. The control loop and the link keep one each.
+pub struct Clock {
+    last_ticks: u32,
+    now_us: u64,
+}
+
+impl Clock {
+    /// A clock at 0 now.
+    pub fn new() -> Self {
+        Clock {
+            last_ticks: TICKS.load(Ordering::Acquire),
+            now_us: 0,
+        }
+    }
+
+    /// Microseconds since `new`, never going back.
+    pub fn now_us(&mut self) -> u64 {
+        let t = TICKS.load(Ordering::Acquire);
+        self.now_us += t.wrapping_sub(self.last_ticks) as u64 * TICK_US;
+        self.last_ticks = t;
+        self.now_us
+    }
+}
+
 /// Asks for `count` steps on `axis` in the next period (called by the control loop).
 pub fn request(axis: Axis, forward: bool, count: u32) {
     let n = count.min(i32::MAX as u32) as i32;
