@@ -454,36 +454,41 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 .map(|sy| Vol::from_mm3(sy.rate * m.dt()))
                 .unwrap_or(Vol::ZERO)
         });
+        self.clear_job();
+        self.last_final = None;
+        self.design_um = [0; 3];
+        self.begun = false;
+        self.head_pos = [R::ZERO; 3];
+        self.entry_material = 0;
+        self.short = Vol::ZERO;
+        self.last_now = None;
+        self.drivers_on = false;
+        self.valves_out = 0;
+        self.last_dv = Vol::ZERO;
+        self.last_q = R::ZERO;
+        self.plunger_vol = [Vol::ZERO; N];
+        self.plunger_steps = [0; N];
+    }
+
+    /// Forgets the plan and the run's progress: what `configure` and `begin` both reset.
+    fn clear_job(&mut self) {
         self.plan.clear();
         self.boundaries.clear();
         self.ends.clear();
         self.open = None;
-        self.last_final = None;
         self.known_to = Some(Vol::ZERO);
-        self.design_um = [0; 3];
         self.commands = 0;
         self.ended = false;
-        self.begun = false;
         self.phase = Phase::Idle;
         self.head = Vol::ZERO;
-        self.head_pos = [R::ZERO; 3];
-        self.entry_material = 0;
         self.want = None;
         self.switch.reset();
         self.stop.reset();
-        self.short = Vol::ZERO;
         self.lost = Vol::ZERO;
-        self.last_now = None;
         self.cycle = 0;
-        self.drivers_on = false;
-        self.valves_out = 0;
         self.pause_requested = false;
         self.pending_fault = None;
-        self.last_dv = Vol::ZERO;
-        self.last_q = R::ZERO;
         self.last_index = 0;
-        self.plunger_vol = [Vol::ZERO; N];
-        self.plunger_steps = [0; N];
     }
 
     /// The machine this executor runs.
@@ -540,28 +545,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.machine.motion.max_steps_per_cycle,
             self.steps.target(pos),
         );
-        self.plan.clear();
-        self.boundaries.clear();
-        self.ends.clear();
-        self.open = None;
+        self.clear_job();
         self.last_final = Some((initial_material, Vol::ZERO));
-        self.known_to = Some(Vol::ZERO);
         self.design_um = head_um;
-        self.commands = 0;
-        self.ended = false;
         self.begun = true;
-        self.phase = Phase::Idle;
-        self.head = Vol::ZERO;
         self.head_pos = pos;
         self.entry_material = initial_material;
-        self.want = None;
-        self.switch.reset();
-        self.stop.reset();
-        self.lost = Vol::ZERO;
-        self.cycle = 0;
-        self.pause_requested = false;
-        self.pending_fault = None;
-        self.last_index = 0;
         Ok(())
     }
 
