@@ -471,6 +471,18 @@ pub fn line(x: &[f64], y: &[f64]) -> Option<(f64, f64)> {
 mod tests {
     use super::*;
 
+    /// 3 e^(0.7 x) on 20 points with a deterministic 0.1 % wiggle, so the residuals are
+    /// not zero.
+    fn wiggly_exp() -> (Vec<f64>, Vec<f64>) {
+        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
+        let y = x
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| 3.0 * (0.7 * x).exp() * (1.0 + 0.001 * ((i * 7 % 5) as f64 - 2.0)))
+            .collect();
+        (x, y)
+    }
+
     fn exp_model() -> Model {
         Model {
             name: "exp".into(),
@@ -498,13 +510,7 @@ mod tests {
 
     #[test]
     fn recovers_an_exact_curve_and_its_interval_is_tight() {
-        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
-        // Deterministic wiggle so the residuals are not zero.
-        let y: Vec<f64> = x
-            .iter()
-            .enumerate()
-            .map(|(i, &x)| 3.0 * (0.7 * x).exp() * (1.0 + 0.001 * ((i * 7 % 5) as f64 - 2.0)))
-            .collect();
+        let (x, y) = wiggly_exp();
         for space in [Space::Linear, Space::Log] {
             let f = fit(&exp_model(), &x, &y, space, FitOptions::default()).unwrap();
             let a = f.get("a").unwrap();
@@ -616,12 +622,7 @@ mod tests {
             g(x, p, &mut out[..2]);
             out[2] = 0.0;
         });
-        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
-        let y: Vec<f64> = x
-            .iter()
-            .enumerate()
-            .map(|(i, &x)| 3.0 * (0.7 * x).exp() * (1.0 + 0.001 * ((i * 7 % 5) as f64 - 2.0)))
-            .collect();
+        let (x, y) = wiggly_exp();
         let e = fit(&m, &x, &y, Space::Linear, FitOptions::default()).unwrap_err();
         assert!(
             e.0.contains("singular") || e.0.contains("told apart"),
