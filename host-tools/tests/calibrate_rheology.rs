@@ -214,6 +214,7 @@ fn a_model_that_does_not_converge_is_reported_and_the_others_still_fit() {
         Options {
             kind: None,
             fit: FitOptions { patience: 1 },
+            ..Default::default()
         },
     )
     .unwrap();

@@ -2,6 +2,8 @@
 //! the file or option and the limit, exits non-zero and writes nothing; and outputs are
 //! written together or not at all, never over a symlink.
 
+mod png_header;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -52,21 +54,6 @@ fn small_png(dir: &Path) {
     .unwrap();
 }
 
-fn crc32(data: &[u8]) -> u32 {
-    let mut c = 0xFFFF_FFFFu32;
-    for &b in data {
-        c ^= b as u32;
-        for _ in 0..8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-        }
-    }
-    !c
-}
-
 #[test]
 fn options_that_would_panic_or_mislead_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -92,23 +79,7 @@ fn a_huge_one_bit_png_is_refused_from_its_header_before_decoding() {
     // 32000 x 32000 one-bit grey: 128 MB decoded, 4 GB as RGBA. The header alone says
     // so; there is no image data at all, so decoding would fail differently.
     let dir = tempfile::tempdir().unwrap();
-    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
-    let mut chunk = |kind: &[u8], data: &[u8]| {
-        png.extend_from_slice(&(data.len() as u32).to_be_bytes());
-        let mut c = kind.to_vec();
-        c.extend_from_slice(data);
-        png.extend_from_slice(&c);
-        png.extend_from_slice(&crc32(&c).to_be_bytes());
-    };
-    let mut ihdr = Vec::new();
-    ihdr.extend_from_slice(&32000u32.to_be_bytes());
-    ihdr.extend_from_slice(&32000u32.to_be_bytes());
-    ihdr.extend_from_slice(&[1, 0, 0, 0, 0]);
-    chunk(b"IHDR", &ihdr);
-    // A zlib header and nothing more: the header is readable, the pixels are not there.
-    chunk(b"IDAT", &[0x78, 0x9c]);
-    chunk(b"IEND", &[]);
-    std::fs::write(dir.path().join("big.png"), &png).unwrap();
+    png_header::write(&dir.path().join("big.png"), 32000, 32000, 1);
     refused(
         dir.path(),
         &["big.png"],

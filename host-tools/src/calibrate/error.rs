@@ -99,6 +99,16 @@ pub enum CalError {
         /// What it must be ("above zero", "zero or more").
         need: &'static str,
     },
+    /// An input is larger than a stated limit; the option that raises it is named.
+    #[error("{path}: {what}; raise the limit with {option} if this input is right")]
+    OverLimit {
+        /// The file or folder.
+        path: PathBuf,
+        /// How large it is, the limit and by how much it is over.
+        what: String,
+        /// The option that sets the limit.
+        option: &'static str,
+    },
     /// The data do not say what they are (unit, kind) and no option said either.
     #[error("{path}: {message}")]
     Unclear {

@@ -5,9 +5,10 @@
 
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, short, sig, toml_float, toml_string};
+use super::output::Outputs;
 use super::plot::{self, Mark, Panel, Series};
 use super::rheology::rheology_toml;
-use super::table::{Bound, Table};
+use super::table::{Bound, Limits, Table};
 use super::CalError;
 use dollop::config::{Config, MATERIAL_NAME_LEN};
 use dollop::rheology::Rheology;
@@ -140,6 +141,8 @@ pub struct Options {
     pub material: Option<String>,
     /// Optimizer budget.
     pub fit: FitOptions,
+    /// How much of the CSV is read.
+    pub limits: Limits,
 }
 
 /// What the config turns a fit into.
@@ -189,7 +192,7 @@ pub struct Calibration {
 
 /// Reads `path` and fits it.
 pub fn calibrate(path: &Path, options: &Options) -> Result<Calibration, CalError> {
-    let table = Table::read(path)?;
+    let table = Table::read(path, options.limits)?;
     calibrate_table(&table, options)
 }
 
@@ -536,7 +539,7 @@ impl Calibration {
     }
 
     /// Flow against pressure, log-log, each material with its supported law.
-    pub fn plot(&self, path: &Path) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
         let mut panel = Panel {
             title: "flow against supply pressure".into(),
             x_label: "pressure (kPa)".into(),
@@ -573,7 +576,7 @@ impl Calibration {
                 color: i + 1,
             });
         }
-        plot::render(path, &[panel], 900, 520)
+        plot::render(path, &[panel], 900, 520, out)
     }
 }
 

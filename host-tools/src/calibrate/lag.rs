@@ -11,8 +11,9 @@
 
 use super::fit::{self, Estimate, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, sig, toml_float};
+use super::output::Outputs;
 use super::plot::{self, Mark, Panel, Series};
-use super::table::{Bound, Table};
+use super::table::{Bound, Limits, Table};
 use super::CalError;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -48,6 +49,8 @@ pub struct Options {
     pub steps_per_mm3: Option<f64>,
     /// Optimizer budget.
     pub fit: FitOptions,
+    /// How much of the CSV is read.
+    pub limits: Limits,
 }
 
 /// The core's valve model fitted to the Weibull curve.
@@ -268,7 +271,7 @@ pub fn dead_time_rise(w: &Weibull) -> Option<DeadTimeRise> {
 
 /// Reads `path` and fits it.
 pub fn calibrate(path: &Path, options: Options) -> Result<Calibration, CalError> {
-    let table = Table::read(path)?;
+    let table = Table::read(path, options.limits)?;
     calibrate_table(&table, options)
 }
 
@@ -511,7 +514,7 @@ impl Calibration {
     }
 
     /// Data, Weibull fit and the valve model over the mass residuals.
-    pub fn plot(&self, path: &Path) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
         let (scale, unit) = match self.unit {
             TimeUnit::S => (1.0, "s"),
             TimeUnit::Ms => (1e3, "ms"),
@@ -606,7 +609,7 @@ impl Calibration {
             }],
             ..Panel::default()
         };
-        plot::render(path, &[top, bottom], 900, 400)
+        plot::render(path, &[top, bottom], 900, 400, out)
     }
 
     /// The three Weibull estimates (M_inf, k, n).

@@ -1,8 +1,10 @@
 //! Writing results: atomic file writes (a temporary file in the same folder, then a
-//! rename, so an interrupted run never leaves half a fragment or plot), and loading the
-//! machine config a calibration needs. What goes into the files is decided elsewhere.
+//! rename, so an interrupted run never leaves half a fragment or plot; fragment and plot
+//! staged together so a failure on one leaves neither), and loading the machine config a
+//! calibration needs. What goes into the files is decided elsewhere.
 
 use super::CalError;
+pub use crate::slicer::output::Outputs;
 use dollop::config::Config;
 use std::path::Path;
 
@@ -15,6 +17,21 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CalError> {
             source,
         }
     })
+}
+
+/// Stages `bytes` for `path` in `out` (renamed into place when `out` is committed).
+pub fn stage(out: &mut Outputs, path: &Path, bytes: &[u8]) -> Result<(), CalError> {
+    out.stage(path, |w| w.write_all(bytes))
+        .map_err(|source| CalError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+}
+
+/// Renames everything staged in `out` into place; on failure names the output.
+pub fn commit(out: Outputs) -> Result<(), CalError> {
+    out.commit()
+        .map_err(|(path, source)| CalError::Write { path, source })
 }
 
 /// Reads and validates a machine config (TOML) for the build's inlet count.

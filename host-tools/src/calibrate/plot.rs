@@ -3,7 +3,7 @@
 //! binary (Ubuntu Light from `epaint_default_fonts`), so plots need no system fonts.
 //! Which series to draw is each calibration's business.
 
-use super::output::write_atomic;
+use super::output::{self, Outputs};
 use super::CalError;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -123,12 +123,14 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Draws `panels` stacked vertically into a PNG of `width` x `height_per_panel * n` pixels.
+/// Draws `panels` stacked vertically into a PNG of `width` x `height_per_panel * n` pixels,
+/// staged for `path` in `out`.
 pub fn render(
     path: &Path,
     panels: &[Panel],
     width: u32,
     height_per_panel: u32,
+    out: &mut Outputs,
 ) -> Result<(), CalError> {
     register_font();
     let height = height_per_panel * panels.len().max(1) as u32;
@@ -152,7 +154,7 @@ pub fn render(
     image
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(|e| plot_err(e.to_string()))?;
-    write_atomic(path, &png)
+    output::stage(out, path, &png)
 }
 
 fn draw_panel<DB: DrawingBackend>(

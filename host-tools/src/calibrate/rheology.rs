@@ -5,8 +5,9 @@
 
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, sig, toml_float};
+use super::output::Outputs;
 use super::plot::{self, Mark, Panel, Series};
-use super::table::{Bound, Table};
+use super::table::{Bound, Limits, Table};
 use super::CalError;
 use dollop::rheology::Rheology;
 use std::fmt::Write as _;
@@ -127,6 +128,8 @@ pub struct Options {
     pub kind: Option<Kind>,
     /// Optimizer budget.
     pub fit: FitOptions,
+    /// How much of the CSV is read.
+    pub limits: Limits,
 }
 
 /// The result of `calibrate rheology`.
@@ -248,7 +251,7 @@ fn to_core(which: Which, f: &Fit) -> Result<Rheology, String> {
 
 /// Reads `path` and fits it.
 pub fn calibrate(path: &Path, options: Options) -> Result<Calibration, CalError> {
-    let table = Table::read(path)?;
+    let table = Table::read(path, options.limits)?;
     calibrate_table(&table, options)
 }
 
@@ -527,7 +530,7 @@ impl Calibration {
     }
 
     /// Data and fits (log-log) over relative residuals.
-    pub fn plot(&self, path: &Path) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
         let (xn, yn) = match self.kind {
             Kind::Rotational => ("shear rate (1/s)", "shear stress (Pa)"),
             Kind::Oscillatory => ("angular frequency (rad/s)", "|G*| (Pa)"),
@@ -592,7 +595,7 @@ impl Calibration {
                 color: i + 1,
             });
         }
-        plot::render(path, &[top, bottom], 900, 420)
+        plot::render(path, &[top, bottom], 900, 420, out)
     }
 }
 

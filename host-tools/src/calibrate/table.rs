@@ -1,9 +1,36 @@
 //! Measurement tables: reads a CSV file (optional header row, `#` comments, spaces trimmed)
-//! into cells that remember their line, and hands out checked numeric or text columns.
-//! What the columns mean is each calibration's business.
+//! into cells that remember their line, within stated limits on its size and rows, and
+//! hands out checked numeric or text columns. What the columns mean is each calibration's
+//! business.
 
 use super::CalError;
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
+
+/// How much of a measurement file is read. A rheometer sweep has tens of points and a
+/// scale logging at 100 Hz for an hour 360 000; a million rows parse to about 150 MB of
+/// cells, which keeps a calibration well under the 1 GiB the host tools allow themselves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Most data rows (`--max-rows`).
+    pub max_rows: usize,
+    /// Largest file, MiB (`--max-csv-mb`): bounds one giant line, which has no rows to count.
+    pub max_mib: u64,
+}
+
+/// Default `--max-rows`.
+pub const MAX_ROWS: usize = 1_000_000;
+/// Default `--max-csv-mb`.
+pub const MAX_CSV_MIB: u64 = 64;
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_rows: MAX_ROWS,
+            max_mib: MAX_CSV_MIB,
+        }
+    }
+}
 
 /// One data row: its 1-based line in the file and its cells.
 #[derive(Clone, Debug)]
@@ -25,6 +52,11 @@ pub struct Table {
     pub rows: Vec<Row>,
 }
 
+/// Bytes in MiB with one decimal, for messages.
+fn mib(bytes: u64) -> String {
+    format!("{:.1}", bytes as f64 / (1u64 << 20) as f64)
+}
+
 /// True when `s` parses as a finite-or-not float (so "nan" counts as a number and is
 /// rejected later as out of range rather than mistaken for a header).
 fn is_number(s: &str) -> bool {
@@ -32,17 +64,43 @@ fn is_number(s: &str) -> bool {
 }
 
 impl Table {
-    /// Reads `path`. A first row whose first cell is not a number is taken as the header.
-    pub fn read(path: &Path) -> Result<Table, CalError> {
-        let bytes = std::fs::read(path).map_err(|source| CalError::Read {
+    /// Reads `path` within `limits`. A first row whose first cell is not a number is taken
+    /// as the header. The size is checked before reading and again while reading (a pipe
+    /// or a growing file has no size to check first).
+    pub fn read(path: &Path, limits: Limits) -> Result<Table, CalError> {
+        let read_err = |source| CalError::Read {
             path: path.to_path_buf(),
             source,
-        })?;
-        Table::parse(path, &bytes)
+        };
+        let max_bytes = limits.max_mib.saturating_mul(1 << 20);
+        let too_big = |bytes: u64| CalError::OverLimit {
+            path: path.to_path_buf(),
+            what: format!(
+                "{} MiB of CSV, over the {} MiB limit by {} MiB",
+                mib(bytes),
+                limits.max_mib,
+                mib(bytes.saturating_sub(max_bytes))
+            ),
+            option: "--max-csv-mb",
+        };
+        let file = std::fs::File::open(path).map_err(read_err)?;
+        let len = file.metadata().map_err(read_err)?.len();
+        if len > max_bytes {
+            return Err(too_big(len));
+        }
+        let mut bytes = Vec::new();
+        file.take(max_bytes.saturating_add(1))
+            .read_to_end(&mut bytes)
+            .map_err(read_err)?;
+        if bytes.len() as u64 > max_bytes {
+            return Err(too_big(bytes.len() as u64));
+        }
+        Table::parse(path, &bytes, limits.max_rows)
     }
 
-    /// Parses CSV text already in memory; `path` only names it in messages.
-    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Table, CalError> {
+    /// Parses CSV text already in memory, at most `max_rows` data rows; `path` only names
+    /// it in messages.
+    pub fn parse(path: &Path, bytes: &[u8], max_rows: usize) -> Result<Table, CalError> {
         let mut reader = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
@@ -51,6 +109,7 @@ impl Table {
             .from_reader(bytes);
         let mut header = None;
         let mut rows = Vec::new();
+        let mut extra = 0usize;
         for record in reader.records() {
             let record = record.map_err(|e| CalError::Csv {
                 path: path.to_path_buf(),
@@ -67,7 +126,23 @@ impl Table {
                 header = Some(cells.iter().map(|c| c.to_lowercase()).collect());
                 continue;
             }
-            rows.push(Row { line, cells });
+            if rows.len() < max_rows {
+                rows.push(Row { line, cells });
+            } else {
+                // Past the limit the rows are only counted, so the refusal can say by how
+                // much without holding them.
+                extra += 1;
+            }
+        }
+        if extra > 0 {
+            return Err(CalError::OverLimit {
+                path: path.to_path_buf(),
+                what: format!(
+                    "{} data rows, over the limit of {max_rows} by {extra}",
+                    max_rows + extra
+                ),
+                option: "--max-rows",
+            });
         }
         Ok(Table {
             path: path.to_path_buf(),

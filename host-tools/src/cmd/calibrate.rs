@@ -3,11 +3,12 @@
 //! fragment (`--out`) and plot (`--plot`). The measuring and fitting live in the library.
 
 use crate::calibrate::camera::edges::Roi;
+use crate::calibrate::camera::frames;
 use crate::calibrate::flow::RateUnit;
 use crate::calibrate::lag::{InletKind, TimeUnit};
-use crate::calibrate::output::{load_config, write_atomic};
+use crate::calibrate::output::{self, load_config, Outputs};
 use crate::calibrate::rheology::Kind;
-use crate::calibrate::{camera, flow, lag, rheology, syringe, CalError};
+use crate::calibrate::{camera, flow, lag, rheology, syringe, table, CalError};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -55,6 +56,26 @@ struct Output {
     plot: Option<PathBuf>,
 }
 
+/// Limits on a measurement CSV (see `calibrate::table::Limits`).
+#[derive(clap::Args, Debug)]
+struct CsvLimits {
+    /// Most data rows read from a CSV; more are refused.
+    #[arg(long, value_name = "N", default_value_t = table::MAX_ROWS)]
+    max_rows: usize,
+    /// Largest CSV file, MiB; larger is refused before it is read.
+    #[arg(long, value_name = "MIB", default_value_t = table::MAX_CSV_MIB)]
+    max_csv_mb: u64,
+}
+
+impl CsvLimits {
+    fn get(&self) -> table::Limits {
+        table::Limits {
+            max_rows: self.max_rows,
+            max_mib: self.max_csv_mb,
+        }
+    }
+}
+
 #[derive(clap::Args, Debug)]
 struct RheologyArgs {
     /// CSV: shear rate, stress (or angular frequency, |G*|); header optional.
@@ -62,6 +83,8 @@ struct RheologyArgs {
     /// What the columns hold (default: read from the header; rotational without one).
     #[arg(long, value_enum)]
     kind: Option<Kind>,
+    #[command(flatten)]
+    limits: CsvLimits,
     #[command(flatten)]
     output: Output,
 }
@@ -86,6 +109,8 @@ struct FlowArgs {
     #[arg(long)]
     material: Option<String>,
     #[command(flatten)]
+    limits: CsvLimits,
+    #[command(flatten)]
     output: Output,
 }
 
@@ -104,6 +129,8 @@ struct LagArgs {
     /// `syringe = { .. }` table.
     #[arg(long)]
     steps_per_mm3: Option<f64>,
+    #[command(flatten)]
+    limits: CsvLimits,
     #[command(flatten)]
     output: Output,
 }
@@ -156,6 +183,13 @@ struct CameraArgs {
     /// Savitzky-Golay window, frames (odd, 3 to 101).
     #[arg(long, default_value_t = 7, value_parser = parse_window)]
     window: usize,
+    /// Most frames read from the folder; more are refused.
+    #[arg(long, value_name = "N", default_value_t = frames::MAX_FRAMES)]
+    max_frames: usize,
+    /// Most pixels over all frames (width x height x frames), checked from the image
+    /// headers before any frame is decoded.
+    #[arg(long, value_name = "N", default_value_t = frames::MAX_PIXELS)]
+    max_pixels: u64,
     #[command(flatten)]
     output: Output,
 }
@@ -206,6 +240,8 @@ struct SyringeArgs {
     /// Machine config (print speed, bead, step-rate limit).
     #[arg(long, value_name = "MACHINE.toml")]
     config: Option<PathBuf>,
+    #[command(flatten)]
+    limits: CsvLimits,
     #[command(flatten)]
     output: Output,
 }
@@ -259,6 +295,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                     &a.data,
                     rheology::Options {
                         kind: a.kind,
+                        limits: a.limits.get(),
                         ..Default::default()
                     },
                 )?;
@@ -267,7 +304,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                     cal.report(),
                     fragment,
                     a.output,
-                    Box::new(move |p| cal.plot(p)),
+                    Box::new(move |p, o| cal.plot(p, o)),
                 )
             }
             What::Flow(a) => {
@@ -280,6 +317,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                         config,
                         speed_mm_s: a.speed,
                         material: a.material,
+                        limits: a.limits.get(),
                         ..Default::default()
                     },
                 )?;
@@ -288,7 +326,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                     cal.report(),
                     fragment,
                     a.output,
-                    Box::new(move |p| cal.plot(p)),
+                    Box::new(move |p, o| cal.plot(p, o)),
                 )
             }
             What::Lag(a) => {
@@ -298,6 +336,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                         time_unit: a.time_unit,
                         inlet: a.inlet,
                         steps_per_mm3: a.steps_per_mm3,
+                        limits: a.limits.get(),
                         ..Default::default()
                     },
                 )?;
@@ -306,7 +345,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                     cal.report(),
                     fragment,
                     a.output,
-                    Box::new(move |p| cal.plot(p)),
+                    Box::new(move |p, o| cal.plot(p, o)),
                 )
             }
             What::Camera(a) => {
@@ -317,6 +356,10 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                 o.roi = a.roi;
                 o.window = a.window;
                 o.config = config;
+                o.limits = frames::Limits {
+                    max_frames: a.max_frames,
+                    max_pixels: a.max_pixels,
+                };
                 let fps = a.fps;
                 let cal = camera::calibrate(&a.frames, &o)?;
                 let fragment = cal.fragment();
@@ -324,7 +367,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                     cal.report(),
                     fragment,
                     a.output,
-                    Box::new(move |p| cal.plot(p, fps)),
+                    Box::new(move |p, o| cal.plot(p, fps, o)),
                 )
             }
             What::Syringe(a) => {
@@ -335,6 +378,7 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                         lag::Options {
                             time_unit: a.lag_time_unit,
                             inlet: InletKind::Syringe,
+                            limits: a.limits.get(),
                             ..Default::default()
                         },
                     )?),
@@ -361,8 +405,8 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
                 }
                 report.push_str(&cal.report());
                 let plotter: Plotter = match lag_cal {
-                    Some(l) => Box::new(move |p| l.plot(p)),
-                    None => Box::new(|_| {
+                    Some(l) => Box::new(move |p, o| l.plot(p, o)),
+                    None => Box::new(|_, _| {
                         Err(CalError::arg(
                             "--plot draws the lag fit: give --lag LAG.csv",
                         ))
@@ -396,6 +440,8 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
         plotter,
         ..
     } = p;
+    // Fragment and plot are staged, then renamed together: a failure on one leaves neither.
+    let mut staged = Outputs::new();
     if let Some(path) = &output.out {
         let f = fragment.ok_or_else(|| {
             CalError::arg(format!(
@@ -403,14 +449,16 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
                 path.display()
             ))
         })?;
-        write_atomic(path, f.as_bytes())?;
-        let _ = writeln!(text, "wrote {}", path.display());
+        output::stage(&mut staged, path, f.as_bytes())?;
     }
     if let Some(path) = &output.plot {
-        plotter(path)?;
+        plotter(path, &mut staged)?;
+    }
+    output::commit(staged)?;
+    for path in [&output.out, &output.plot].into_iter().flatten() {
         let _ = writeln!(text, "wrote {}", path.display());
     }
     Ok(())
 }
 
-type Plotter = Box<dyn FnOnce(&Path) -> Result<(), CalError>>;
+type Plotter = Box<dyn FnOnce(&Path, &mut Outputs) -> Result<(), CalError>>;

@@ -4,7 +4,7 @@
 //! plant, and prints the report. Everything it needs is compiled into the binary.
 
 use super::simulate::{self, Heatmap};
-use crate::slicer::{self, gcode, image::ImageOptions, job_file, preview, SliceOptions};
+use crate::slicer::{self, gcode, image::ImageOptions, job_file, output, preview, SliceOptions};
 use anyhow::Context;
 use dollop_sim::Job;
 use std::path::{Path, PathBuf};
@@ -37,22 +37,28 @@ const CHESSBOARD: &[u8] = include_bytes!("../../designs/chessboard.png");
 const CUBE_SHELL: &[u8] = include_bytes!("../../designs/cube-shell.stl");
 const CUBE_BALL: &[u8] = include_bytes!("../../designs/cube-ball.stl");
 
-fn write(dir: &Path, name: &str, bytes: &[u8]) -> anyhow::Result<PathBuf> {
-    let path = dir.join(name);
-    slicer::output::write_bytes(&path, bytes)?;
+/// Writes a bundled input where the slicer can read it (a private temporary folder: the
+/// user's copies are staged with the other outputs) and returns its path.
+fn input(tmp: &Path, name: &str, bytes: &[u8]) -> anyhow::Result<PathBuf> {
+    let path = tmp.join(name);
+    std::fs::write(&path, bytes).with_context(|| format!("{}: cannot write", path.display()))?;
     Ok(path)
 }
 
-/// Runs `dollop demo`.
+/// Runs `dollop demo`. Every file it writes (the inputs' copies included) is staged and
+/// renamed into the folder together at the end, so a failed or interrupted demo leaves
+/// none of them.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let dir = &a.out_dir;
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let machine_path = write(dir, "machine.toml", MACHINE.as_bytes())?;
-    let config = slicer::load_config(&machine_path)?;
-    let (name, files, opts) = match a.design {
+    let tmp = tempfile::tempdir().context("cannot create a temporary folder")?;
+    let tmp = tmp.path();
+    let machine_path = dir.join("machine.toml");
+    let config = slicer::load_config(&input(tmp, "machine.toml", MACHINE.as_bytes())?)?;
+    let (name, inputs, opts): (&str, &[(&str, &[u8])], SliceOptions) = match a.design {
         Design::Logo => (
             "logo",
-            vec![write(dir, "logo.png", LOGO)?],
+            &[("logo.png", LOGO)],
             SliceOptions {
                 image: ImageOptions {
                     width_mm: Some(40.0),
@@ -63,25 +69,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ),
         Design::Chessboard => (
             "chessboard",
-            vec![write(dir, "chessboard.png", CHESSBOARD)?],
+            &[("chessboard.png", CHESSBOARD)],
             SliceOptions::default(),
         ),
         Design::Cube => (
             "cube",
-            vec![
-                write(dir, "cube-shell.stl", CUBE_SHELL)?,
-                write(dir, "cube-ball.stl", CUBE_BALL)?,
-            ],
+            &[("cube-shell.stl", CUBE_SHELL), ("cube-ball.stl", CUBE_BALL)],
             SliceOptions::default(),
         ),
     };
+    let files = inputs
+        .iter()
+        .map(|(n, b)| input(tmp, n, b))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let opts = SliceOptions {
         progress: true,
         ..opts
     };
     let sliced = slicer::slice_files(&files, &config, &opts)?;
     let job_path = dir.join(format!("{name}.dlp"));
-    job_file::write_job(&job_path, &sliced.header, &sliced.body)?;
     let machine = slicer::validate(&machine_path, &config)?;
     let names: Vec<String> = config
         .inlets
@@ -96,17 +102,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         &names,
         gcode::Style::Fine { max_sub_mm: 0.25 },
     )?;
-    let gcode_path = write(dir, &format!("{name}.gcode"), gcode_text.as_bytes())?;
+    let gcode_path = dir.join(format!("{name}.gcode"));
     let preview_path = dir.join(format!("{name}-toolpath.png"));
-    preview::render(
-        &preview_path,
+    let preview_img = preview::draw(
         &sliced.commands,
         sliced.header.start_um,
         &preview::PreviewOptions {
             bead_mm: config.channel.line_pitch_mm as f64,
             ..Default::default()
         },
-    )?;
+    );
     println!(
         "sliced {} for {}: {} print segments, {:.1} x {:.1} mm, job {} bytes ({:.1} B/segment; G-code {:.0} B/segment)",
         files
@@ -144,7 +149,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let wall = t.elapsed();
     heat.mark_boundaries(&result.metrics.boundaries);
     let plate_path = dir.join(format!("{name}-plate.png"));
-    heat.save(&plate_path)?;
+    let mut staged = output::Outputs::new();
+    output::stage(&mut staged, &machine_path, |w| {
+        w.write_all(MACHINE.as_bytes())
+    })?;
+    for (n, b) in inputs {
+        output::stage(&mut staged, &dir.join(n), |w| w.write_all(b))?;
+    }
+    output::stage(&mut staged, &job_path, |w| {
+        w.write_all(&job_file::job_bytes(&sliced.header, &sliced.body))
+    })?;
+    output::stage(&mut staged, &gcode_path, |w| {
+        w.write_all(gcode_text.as_bytes())
+    })?;
+    preview::stage_png(&mut staged, &preview_path, &preview_img)?;
+    heat.stage(&mut staged, &plate_path)?;
+    output::commit(staged)?;
     print!("{}", simulate::report_text(&result, &config, true, wall));
     println!(
         "wrote {}, {}, {}, {}",
@@ -155,6 +175,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     if let Some(f) = result.fault {
         anyhow::bail!("the demo job ended in a fault: {f}");
+    }
+    if let Some(first) = result.metrics.mismatches.first() {
+        anyhow::bail!(
+            "the demo's material sequence on the plate differs from the design ({} difference(s); first: {first})",
+            result.metrics.mismatches.len()
+        );
     }
     Ok(())
 }

@@ -252,12 +252,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 ..Default::default()
             },
         );
-        output::stage(&mut staged, path, |w| {
-            let mut buf = Vec::new();
-            img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
-                .map_err(std::io::Error::other)?;
-            w.write_all(&buf)
-        })?;
+        preview::stage_png(&mut staged, path, &img)?;
     }
     output::commit(staged)?;
     let job_len = job_bytes.len();

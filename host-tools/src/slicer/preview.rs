@@ -3,7 +3,7 @@
 //! thin dashed lines. PNG out, written atomically. Simulation heatmaps are not drawn here.
 
 use super::error::SliceError;
-use super::output::write_atomic;
+use super::output::{stage, write_atomic, Outputs};
 use dollop::Command;
 use image::{Rgb, RgbImage};
 use std::path::Path;
@@ -179,12 +179,19 @@ pub fn render(
 
 /// Writes an RGB image as PNG atomically.
 pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), SliceError> {
-    write_atomic(path, |w| {
-        let mut buf = Vec::new();
-        img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
-            .map_err(std::io::Error::other)?;
-        w.write_all(&buf)
-    })
+    write_atomic(path, |w| encode_png(img, w))
+}
+
+/// Stages an RGB image as PNG for `path` in `out` (renamed when `out` is committed).
+pub fn stage_png(out: &mut Outputs, path: &Path, img: &RgbImage) -> Result<(), SliceError> {
+    stage(out, path, |w| encode_png(img, w))
+}
+
+fn encode_png(img: &RgbImage, w: &mut dyn std::io::Write) -> std::io::Result<()> {
+    let mut buf = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
+        .map_err(std::io::Error::other)?;
+    w.write_all(&buf)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ pub mod synth;
 pub mod track;
 
 use super::format::{short, sig, toml_float};
+use super::output::Outputs;
 use super::plot::{self, Mark, Panel, Series};
 use super::savgol;
 use super::CalError;
@@ -39,6 +40,8 @@ pub struct Options {
     pub order: usize,
     /// Machine config (nozzle bore, print-speed cap).
     pub config: Option<Config>,
+    /// How many frames and pixels are read.
+    pub limits: frames::Limits,
 }
 
 impl Options {
@@ -53,6 +56,7 @@ impl Options {
             window: 7,
             order: 2,
             config: None,
+            limits: frames::Limits::default(),
         }
     }
 }
@@ -117,7 +121,7 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
     if let Some(t) = o.target_width_mm {
         positive("--target-width", t)?;
     }
-    let files = frames::list(dir)?;
+    let files = frames::list(dir, o.limits.max_frames)?;
     if files.len() < 2 {
         return Err(CalError::TooFewFrames {
             path: dir.to_path_buf(),
@@ -125,8 +129,16 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
             need: 2,
         });
     }
-    let imgs = frames::load(&files)?;
-    let (w, h) = imgs[0].dimensions();
+    let (w, h) = frames::check_sizes(&files, dir, o.limits.max_pixels)?;
+    // Decoding, edges and tracking take about a second per 10^6 pixels: show it.
+    let bar = crate::slicer::output::progress(2 * files.len() as u64 - 1, "frames");
+    let imgs = files
+        .iter()
+        .map(|f| {
+            bar.inc(1);
+            frames::load_one(f, (w, h))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let roi = o.roi.unwrap_or(Roi::full(w, h)).clip(w, h);
     if roi.w < 8 || roi.h < 8 {
         return Err(CalError::arg(format!(
@@ -170,7 +182,9 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
             _ => f64::NAN,
         });
         prev = next;
+        bar.inc(1);
     }
+    bar.finish_and_clear();
     let width_raw: Vec<f64> = width_px
         .iter()
         .map(|w| w.map_or(f64::NAN, |w| w * scale))
@@ -369,7 +383,7 @@ impl Calibration {
     }
 
     /// Speed and width through the sequence, raw and smoothed.
-    pub fn plot(&self, path: &Path, fps: f64) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, fps: f64, out: &mut Outputs) -> Result<(), CalError> {
         let t = |i: usize| i as f64 / fps;
         let speed = Panel {
             title: format!("extrusion speed: {} mm/s", sig(self.v_ex, 4)),
@@ -427,6 +441,6 @@ impl Calibration {
             y_min_span: 0.1 * self.d_ex,
             ..Panel::default()
         };
-        plot::render(path, &[speed, width], 900, 360)
+        plot::render(path, &[speed, width], 900, 360, out)
     }
 }
