@@ -1,5 +1,7 @@
 //! `dollop simulate` end to end: trace CSV format and sampling, heatmap, report, and bad
-//! input (missing or corrupt job, invalid config) refused with one line, nothing left.
+//! input (missing or corrupt job, invalid config) refused with one line, nothing left; the
+//! optional time limit; reports that tell the truth (no "worst" of no boundaries, a
+//! material sequence that differs from the design fails); Ctrl-C leaves no files.
 
 use dollop_host::slicer::job_file;
 use std::path::{Path, PathBuf};
@@ -15,8 +17,6 @@ fn dollop() -> Command {
 
 /// A small two-material job written as a .dlp for the seed printhead with real valves.
 fn write_job(dir: &Path) -> (PathBuf, PathBuf) {
-    let cfg_path = repo().join("configs/seed-paper-valves.toml");
-    let cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&cfg_path).unwrap()).unwrap();
     let fill = dollop_sim::designs::Fill {
         origin_mm: [20.0, 20.0],
         width_mm: 6.0,
@@ -28,17 +28,40 @@ fn write_job(dir: &Path) -> (PathBuf, PathBuf) {
         prime_mm: 8.0,
     };
     let job = dollop_sim::designs::boustrophedon(&fill, dollop_sim::designs::stripes(1.5));
-    let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(
+    write_commands(
+        dir,
+        "stripes.dlp",
         &job.commands,
-        &body,
         job.start_um,
         job.initial_material,
-        &cfg,
-    );
-    let path = dir.join("stripes.dlp");
+    )
+}
+
+/// `commands` written as a .dlp for the seed printhead with real valves.
+fn write_commands(
+    dir: &Path,
+    name: &str,
+    commands: &[dollop::Command],
+    start_um: [i32; 3],
+    initial_material: u8,
+) -> (PathBuf, PathBuf) {
+    let cfg_path = repo().join("configs/seed-paper-valves.toml");
+    let cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&cfg_path).unwrap()).unwrap();
+    let body = job_file::encode_body(commands);
+    let header = job_file::header_for(commands, &body, start_um, initial_material, &cfg);
+    let path = dir.join(name);
     job_file::write_job(&path, &header, &body).unwrap();
     (path, cfg_path)
+}
+
+/// The files in `dir`, sorted.
+fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
 }
 
 #[test]
@@ -165,4 +188,207 @@ fn bad_inputs_are_refused_in_one_line_and_leave_nothing() {
         ],
         "nozzle_diameter_mm",
     );
+}
+
+#[test]
+fn a_time_limit_refuses_a_longer_job_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (job, cfg) = write_job(dir.path());
+    let trace = dir.path().join("trace.csv");
+    let heat = dir.path().join("plate.png");
+    let before = files(dir.path());
+    let out = dollop()
+        .arg("simulate")
+        .arg(&job)
+        .arg("--config")
+        .arg(&cfg)
+        .args(["--max-seconds", "0.5", "--trace"])
+        .arg(&trace)
+        .arg("--heatmap")
+        .arg(&heat)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("stripes.dlp")
+            && err.contains("within 0.5 s")
+            && err.contains("--max-seconds"),
+        "{err}"
+    );
+    assert_eq!(files(dir.path()), before, "outputs or temporary files left");
+    // Without the limit the same job runs to the end; the limit takes no nonsense.
+    let ok = dollop()
+        .arg("simulate")
+        .arg(&job)
+        .arg("--config")
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    for bad in ["0", "-3", "nan", "inf"] {
+        let out = dollop()
+            .arg("simulate")
+            .arg(&job)
+            .arg("--config")
+            .arg(&cfg)
+            .arg(format!("--max-seconds={bad}"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--max-seconds {bad} was accepted");
+        assert!(err.contains("--max-seconds"), "{bad}: {err}");
+    }
+}
+
+#[test]
+fn a_job_without_boundaries_reports_no_worst_boundary() {
+    let dir = tempfile::tempdir().unwrap();
+    let fill = dollop_sim::designs::Fill {
+        origin_mm: [20.0, 20.0],
+        width_mm: 4.0,
+        rows: 2,
+        pitch_mm: 0.8,
+        layers: 1,
+        layer_mm: 0.6,
+        cell_mm: 0.1,
+        prime_mm: 8.0,
+    };
+    let job = dollop_sim::designs::boustrophedon(&fill, |_, _, _| 0);
+    let (job, cfg) = write_commands(dir.path(), "plain.dlp", &job.commands, job.start_um, 0);
+    let out = dollop()
+        .arg("simulate")
+        .arg(&job)
+        .arg("--config")
+        .arg(&cfg)
+        .arg("--report")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("boundaries"))
+        .unwrap_or_else(|| panic!("no boundaries line: {text}"));
+    assert!(line.contains("none measured"), "{line}");
+    assert!(!text.contains("worst 0"), "{text}");
+}
+
+#[test]
+fn a_material_sequence_that_differs_from_the_design_fails_and_says_where() {
+    // A run of one micrometre of material 1 between runs of material 0: far below what
+    // lands as a run of its own on the plate (slivers under 5 um merge), so the plate's
+    // sequence is 0 where the design's is 0, 1, 0.
+    use dollop::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let commands = [
+        Command::Travel {
+            x: 20_000,
+            y: 20_000,
+            z: 600,
+        },
+        Command::Print {
+            dx: 8_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::Print {
+            dx: 1,
+            dy: 0,
+            material: 1,
+        },
+        Command::Print {
+            dx: 4_000,
+            dy: 0,
+            material: 0,
+        },
+        Command::End,
+    ];
+    let (job, cfg) = write_commands(dir.path(), "blip.dlp", &commands, [20_000, 20_000, 600], 0);
+    let out = dollop()
+        .arg("simulate")
+        .arg(&job)
+        .arg("--config")
+        .arg(&cfg)
+        .arg("--report")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "a differing sequence passed");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("blip.dlp")
+            && err.contains("differs from the design")
+            && err.contains("bead 0"),
+        "{err}"
+    );
+}
+
+#[test]
+fn ctrl_c_removes_the_temporary_files_and_writes_nothing() {
+    // A job long enough that the simulation is still running when the signal comes.
+    let dir = tempfile::tempdir().unwrap();
+    let fill = dollop_sim::designs::Fill {
+        origin_mm: [10.0, 10.0],
+        width_mm: 60.0,
+        rows: 60,
+        pitch_mm: 0.8,
+        layers: 2,
+        layer_mm: 0.6,
+        cell_mm: 0.1,
+        prime_mm: 8.0,
+    };
+    let job = dollop_sim::designs::boustrophedon(&fill, dollop_sim::designs::stripes(1.5));
+    let (job, cfg) = write_commands(
+        dir.path(),
+        "long.dlp",
+        &job.commands,
+        job.start_um,
+        job.initial_material,
+    );
+    let before = files(dir.path());
+    let trace = dir.path().join("trace.csv");
+    let mut child = dollop()
+        .arg("simulate")
+        .arg(&job)
+        .arg("--config")
+        .arg(&cfg)
+        .arg("--trace")
+        .arg(&trace)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for the trace's temporary file: from then on the run is writing it.
+    let t0 = std::time::Instant::now();
+    while !files(dir.path()).iter().any(|f| f.ends_with(".part")) {
+        assert!(t0.elapsed().as_secs() < 30, "no temporary file appeared");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before the signal"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(
+        err.contains("interrupted; temporary files removed"),
+        "{err}"
+    );
+    assert_eq!(files(dir.path()), before, "files left after Ctrl-C");
 }
