@@ -27,8 +27,15 @@ fn the_demo_writes_its_files_together() {
     let dir = tmp.path().join("demo");
     let out = demo(&dir);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(text.contains("boundaries") && text.contains("worst"), "{text}");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("boundaries") && text.contains("worst"),
+        "{text}"
+    );
     assert_eq!(
         files(&dir),
         [

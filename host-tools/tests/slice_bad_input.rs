@@ -145,6 +145,15 @@ fn each_bad_input_gets_a_one_line_reason_naming_the_file() {
     let e = refused(d, &["open.stl", "--config", cfg]);
     assert!(e.contains("open.stl: not a closed manifold body"), "{e}");
 
+    let mut flipped = shapes::cuboid(&d.join("flipped.stl"), [0.0; 3], [10.0; 3]);
+    flipped.triangles[0].swap(1, 2);
+    write_stl(&d.join("flipped.stl"), &flipped).unwrap();
+    let e = refused(d, &["flipped.stl", "--config", cfg]);
+    assert!(
+        e.contains("flipped.stl: faces not consistently oriented") && e.contains("normals"),
+        "{e}"
+    );
+
     write_stl(
         &d.join("a.stl"),
         &shapes::cuboid(Path::new("a"), [0.0; 3], [10.0; 3]),

@@ -86,6 +86,19 @@ pub enum SliceError {
         /// A point on the first offending edge, model mm.
         at: [f64; 3],
     },
+    /// Two triangles of an edge run along it the same way: part of the body faces inward.
+    #[error(
+        "{}: faces not consistently oriented: {edges} edge(s) where two triangles run the same way, so some face inward and some outward (first near ({:.3}, {:.3}, {:.3}) mm); repair the mesh (unify or recalculate its normals)",
+        .path.display(), .at[0], .at[1], .at[2]
+    )]
+    Misoriented {
+        /// The file.
+        path: PathBuf,
+        /// Edges shared by two triangles running the same way.
+        edges: usize,
+        /// A point on the first such edge, model mm.
+        at: [f64; 3],
+    },
     /// Two material bodies claim the same volume.
     #[error(
         "{} and {} overlap near ({:.2}, {:.2}, {:.2}) mm (model coordinates); each point may belong to one material only",

@@ -73,8 +73,15 @@ impl Mesh {
 
     /// Checks the body is closed: every edge belongs to exactly two triangles. (Without
     /// that, "inside" has no meaning and the ray parity would fill or hollow at random.)
-    /// Degenerate triangles (two equal corners) are skipped: they enclose nothing.
+    /// Then that it is consistently oriented: the two triangles of an edge run along it in
+    /// opposite directions. A triangle flipped against its neighbours would make the
+    /// winding rule fill or hollow part of the body, so it is refused by name rather than
+    /// found later as a layer that does not close. A body flipped as a whole is consistent
+    /// and prints as it would facing outward. Degenerate triangles (two equal corners) are
+    /// skipped: they enclose nothing.
     pub fn check_closed(&self) -> Result<(), SliceError> {
+        // Undirected edge in the high bits, direction (1: the lower vertex comes second)
+        // in the lowest bit, so the two uses of an edge sort side by side.
         let mut edges: Vec<u64> = Vec::with_capacity(self.triangles.len() * 3);
         for t in &self.triangles {
             if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
@@ -82,36 +89,47 @@ impl Mesh {
             }
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                edges.push(((lo as u64) << 32) | hi as u64);
+                let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
+                edges.push((((lo as u64) << 32 | hi as u64) << 1) | dir);
             }
         }
         edges.sort_unstable();
-        let mut bad = 0usize;
-        let mut first: Option<u64> = None;
+        let (mut open, mut flipped) = (0usize, 0usize);
+        let (mut first_open, mut first_flipped): (Option<u64>, Option<u64>) = (None, None);
         let mut i = 0;
         while i < edges.len() {
             let mut j = i + 1;
-            while j < edges.len() && edges[j] == edges[i] {
+            while j < edges.len() && edges[j] >> 1 == edges[i] >> 1 {
                 j += 1;
             }
             if j - i != 2 {
-                bad += 1;
-                first.get_or_insert(edges[i]);
+                open += 1;
+                first_open.get_or_insert(edges[i] >> 1);
+            } else if edges[i] & 1 == edges[i + 1] & 1 {
+                flipped += 1;
+                first_flipped.get_or_insert(edges[i] >> 1);
             }
             i = j;
         }
-        match first {
-            None => Ok(()),
-            Some(e) => {
-                let v = self.vertices[(e >> 32) as usize];
-                Err(SliceError::NonManifold {
-                    path: self.path.clone(),
-                    edges: bad,
-                    at: [v[0] as f64, v[1] as f64, v[2] as f64],
-                })
-            }
+        let at = |e: u64| {
+            let v = self.vertices[(e >> 32) as usize];
+            [v[0] as f64, v[1] as f64, v[2] as f64]
+        };
+        if let Some(e) = first_open {
+            return Err(SliceError::NonManifold {
+                path: self.path.clone(),
+                edges: open,
+                at: at(e),
+            });
         }
+        if let Some(e) = first_flipped {
+            return Err(SliceError::Misoriented {
+                path: self.path.clone(),
+                edges: flipped,
+                at: at(e),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -304,6 +322,25 @@ mod tests {
         open.triangles.pop();
         let e = open.check_closed().unwrap_err().to_string();
         assert!(e.starts_with("x.stl: not a closed manifold body"), "{e}");
+    }
+
+    #[test]
+    fn a_triangle_flipped_against_its_neighbours_is_refused_and_a_flipped_body_is_not() {
+        let p = Path::new("x.stl");
+        let mut body = shapes::cuboid(p, [0.0; 3], [10.0; 3]);
+        let mut inside_out = body.clone();
+        for t in &mut inside_out.triangles {
+            t.swap(1, 2);
+        }
+        inside_out.check_closed().unwrap();
+        body.triangles[4].swap(1, 2);
+        let e = body.check_closed().unwrap_err().to_string();
+        // One triangle flipped: its three edges each meet a neighbour running the same way.
+        assert!(
+            e.starts_with("x.stl: faces not consistently oriented: 3 edge(s)"),
+            "{e}"
+        );
+        assert!(e.contains("repair the mesh"), "{e}");
     }
 
     #[test]
