@@ -130,7 +130,7 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
         });
     }
     let (w, h) = frames::check_sizes(&files, dir, o.limits.max_pixels)?;
-    // Decoding, edges and tracking take about a second per 10^6 pixels: show it.
+    // Decoding, edges and tracking take seconds per 10^6 pixels: show the progress.
     let bar = crate::slicer::output::progress(2 * files.len() as u64 - 1, "frames");
     let imgs = files
         .iter()
