@@ -3,5 +3,6 @@
 
 pub mod calibrate;
 pub mod cmd;
+pub mod inspect;
 pub mod link;
 pub mod slicer;

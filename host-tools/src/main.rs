@@ -39,6 +39,9 @@ enum Command {
     Valve(cmd::link::ValveArgs),
     /// Turn measurements into config values.
     Calibrate(cmd::calibrate::Args),
+    /// Measure a printed job from a top-view photo: pattern error, boundary offsets, bead
+    /// width; --suggest turns them into config corrections.
+    Inspect(cmd::inspect::Args),
     /// Print performance figures (slicing, voxelizing, simulation, link, job size).
     Bench(cmd::bench::Args),
 }
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
         Command::Jog(a) => cmd::link::jog(a),
         Command::Valve(a) => cmd::link::valve(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Inspect(a) => cmd::inspect::run(a),
         Command::Bench(a) => cmd::bench::run(a),
     };
     match result {

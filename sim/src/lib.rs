@@ -11,4 +11,4 @@ pub mod run;
 
 pub use designs::Job;
 pub use metrics::Metrics;
-pub use run::{run, Cycle, RunOptions, RunResult, SimError};
+pub use run::{run, run_with_plant, Cycle, RunOptions, RunResult, SimError};

@@ -102,6 +102,19 @@ pub fn run<R: Real>(
     config: &Config,
     job: &Job,
     opts: &RunOptions,
+    observe: impl FnMut(&Cycle<'_, R>),
+) -> Result<RunResult, SimError> {
+    run_with_plant(config, config, job, opts, observe)
+}
+
+/// [`run`] with the plant built from `plant_config` instead: a machine whose physics
+/// differ from what the executor was told (a channel longer than configured, a slower
+/// valve, a thicker paste), as a miscalibrated printer prints.
+pub fn run_with_plant<R: Real>(
+    config: &Config,
+    plant_config: &Config,
+    job: &Job,
+    opts: &RunOptions,
     mut observe: impl FnMut(&Cycle<'_, R>),
 ) -> Result<RunResult, SimError> {
     let machine = config
@@ -119,7 +132,7 @@ pub fn run<R: Real>(
     exec.begin(job.start_um, job.initial_material)
         .map_err(SimError::Begin)?;
     let mut plant = if opts.plant {
-        Some(Plant::new(config, job.initial_material).map_err(SimError::Config)?)
+        Some(Plant::new(plant_config, job.initial_material).map_err(SimError::Config)?)
     } else {
         None
     };

@@ -1,0 +1,414 @@
+//! Measuring the classified photo against the design, in the design's frame: the design
+//! painted as pixels, the pattern error (share of the design's area showing the wrong
+//! material or none), each boundary's signed offset along its bead (a step fitted to the
+//! materials sampled along the centre line), and the bead width across the path.
+
+use super::classify::PLATE;
+use super::design::{Bead, Plan};
+use super::register::Frame;
+
+/// Paints material `m` into `px` (frame pixels) where a bead of half-width `r_mm` covers
+/// it: the strip across the path from `a` to `b` (mm), or with `disk` the disk about `a`.
+/// Paste lands under the nozzle and stays, so a stretch of path paints only the strip
+/// across it: a disk's front half would paint paste ahead of the nozzle.
+pub fn stamp(px: &mut [u8], frame: &Frame, a: [f64; 2], b: [f64; 2], r_mm: f64, m: u8, disk: bool) {
+    let (w, h) = frame.size();
+    let (qa, qb) = (frame.to_px(a), frame.to_px(b));
+    let r = r_mm * frame.px_per_mm;
+    let d = [qb[0] - qa[0], qb[1] - qa[1]];
+    let len = d[0].hypot(d[1]);
+    let u = if len > 0.0 {
+        [d[0] / len, d[1] / len]
+    } else {
+        [1.0, 0.0]
+    };
+    let (x0, x1) = (qa[0].min(qb[0]) - r - 1.0, qa[0].max(qb[0]) + r + 1.0);
+    let (y0, y1) = (qa[1].min(qb[1]) - r - 1.0, qa[1].max(qb[1]) + r + 1.0);
+    for y in (y0.floor().max(0.0) as i64)..=(y1.ceil().min(h as f64 - 1.0) as i64) {
+        for x in (x0.floor().max(0.0) as i64)..=(x1.ceil().min(w as f64 - 1.0) as i64) {
+            let (rx, ry) = (x as f64 + 0.5 - qa[0], y as f64 + 0.5 - qa[1]);
+            let inside = if disk {
+                rx * rx + ry * ry <= r * r
+            } else {
+                let t = rx * u[0] + ry * u[1];
+                // One pixel further than the stretch: on a curve the strips fan out and
+                // would leave wedges of plate on the outer side; the next strip paints
+                // over the extra pixel on a straight.
+                (0.0..len + 1.0).contains(&t) && (rx * u[1] - ry * u[0]).abs() <= r
+            };
+            if inside {
+                px[(y * w as i64 + x) as usize] = m;
+            }
+        }
+    }
+}
+
+/// The design as frame pixels: the material whose bead covers each pixel, `PLATE` where
+/// none does. Beads are `pitch` wide with round ends, painted as the nozzle lays them.
+pub fn paint(plan: &Plan, frame: &Frame) -> Vec<u8> {
+    let (w, h) = frame.size();
+    let mut img = vec![PLATE; (w * h) as usize];
+    let r = plan.pitch / 2.0;
+    let step = 0.5 / frame.px_per_mm;
+    for b in &plan.beads {
+        let len = b.length();
+        let n = (len / step).ceil().max(1.0) as usize;
+        let first = b.material_at(0.0);
+        stamp(&mut img, frame, b.at(0.0).0, b.at(0.0).0, r, first, true);
+        for i in 0..n {
+            let (s0, s1) = (i as f64 * step, ((i + 1) as f64 * step).min(len));
+            let m = b.material_at(0.5 * (s0 + s1));
+            stamp(&mut img, frame, b.at(s0).0, b.at(s1).0, r, m, false);
+        }
+        let end = b.at(len).0;
+        stamp(&mut img, frame, end, end, r, b.material_at(len), true);
+    }
+    img
+}
+
+/// Share of the design's printed pixels where the photo shows another material or the
+/// plate.
+pub fn pattern_error(design: &[u8], seen: &[u8]) -> f64 {
+    let (mut n, mut wrong) = (0u64, 0u64);
+    for (&d, &s) in design.iter().zip(seen) {
+        if d != PLATE {
+            n += 1;
+            if s != d {
+                wrong += 1;
+            }
+        }
+    }
+    wrong as f64 / n.max(1) as f64
+}
+
+/// One boundary as the photo shows it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Found {
+    /// Index in the plan's boundaries.
+    pub index: usize,
+    /// Landed minus design along the bead, mm (positive: late).
+    pub offset: f64,
+    /// Share of the samples the fitted step explains.
+    pub fit: f64,
+}
+
+/// The label seen at design point `p` (mm), `PLATE` outside the frame.
+fn label_at(seen: &[u8], frame: &Frame, p: [f64; 2]) -> u8 {
+    let (w, h) = frame.size();
+    let c = frame.to_px(p);
+    let (x, y) = (c[0].floor(), c[1].floor());
+    if x < 0.0 || y < 0.0 || x >= w as f64 || y >= h as f64 {
+        return PLATE;
+    }
+    seen[(y as u32 * w + x as u32) as usize]
+}
+
+/// Materials seen along the bead of `b` from `s0` to `s1` every `step` mm (three samples
+/// across the bead, the majority counted).
+fn along(
+    plan: &Plan,
+    frame: &Frame,
+    seen: &[u8],
+    bead: usize,
+    s0: f64,
+    s1: f64,
+    step: f64,
+) -> Vec<(f64, u8)> {
+    let bead = &plan.beads[bead];
+    let across = plan.pitch * 0.2;
+    let n = ((s1 - s0) / step).floor().max(0.0) as usize;
+    (0..=n)
+        .map(|i| {
+            let s = s0 + i as f64 * step;
+            let (p, u) = bead.at(s);
+            let nn = [-u[1], u[0]];
+            let l: [u8; 3] = std::array::from_fn(|k| {
+                let o = (k as f64 - 1.0) * across;
+                label_at(seen, frame, [p[0] + nn[0] * o, p[1] + nn[1] * o])
+            });
+            (s, if l[0] == l[2] { l[0] } else { l[1] })
+        })
+        .collect()
+}
+
+/// The step from `from` to `to` that best explains `labels`: (split position, share of
+/// samples it explains). The middle of equally good splits.
+fn step_fit(labels: &[(f64, u8)], from: u8, to: u8) -> Option<(f64, f64)> {
+    let total = labels.len();
+    if total < 4 {
+        return None;
+    }
+    let mut bad_after: Vec<usize> = vec![0; total + 1];
+    for i in (0..total).rev() {
+        bad_after[i] = bad_after[i + 1] + usize::from(labels[i].1 != to);
+    }
+    let mut bad_before = 0usize;
+    let mut best = (usize::MAX, 0usize, 0usize);
+    for i in 0..=total {
+        if i > 0 {
+            bad_before += usize::from(labels[i - 1].1 != from);
+        }
+        let e = bad_before + bad_after[i];
+        if e < best.0 {
+            best = (e, i, i);
+        } else if e == best.0 {
+            best.2 = i;
+        }
+    }
+    // A split at i lies between samples i-1 and i.
+    let s_at = |i: usize| -> f64 {
+        let i = i.clamp(1, total - 1);
+        0.5 * (labels[i - 1].0 + labels[i].0)
+    };
+    Some((
+        0.5 * (s_at(best.1) + s_at(best.2)),
+        1.0 - best.0 as f64 / total as f64,
+    ))
+}
+
+/// Largest shift of all boundaries of one switch direction searched for, mm.
+pub const MAX_SHIFT_MM: f64 = 4.0;
+
+/// Every boundary of `plan` located in `seen` (labels per frame pixel). Boundaries can
+/// land further from the design than the design's own runs are long (a channel 20 %
+/// longer than configured puts them a millimetre late), so first the shift of each
+/// switch direction as a whole is found (the one under which the design's runs agree
+/// best with the photo along the beads), then each boundary in a window about its
+/// shifted place. A boundary whose best step explains less than 70 % of its samples, or
+/// that lands within a pitch of a corner, is not found (left out).
+pub fn boundaries(plan: &Plan, frame: &Frame, seen: &[u8]) -> Vec<Found> {
+    let step = 0.5 / frame.px_per_mm;
+    let mut kinds: Vec<(u8, u8)> = plan.boundaries.iter().map(|b| (b.from, b.to)).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let mut shift = std::collections::HashMap::new();
+    for &kind in &kinds {
+        // Agreement of the photo with the design's step at s + d, summed over this kind's
+        // boundaries, for d every 0.05 mm.
+        let bs: Vec<_> = plan
+            .boundaries
+            .iter()
+            .filter(|b| (b.from, b.to) == kind)
+            .collect();
+        let lines: Vec<(f64, Vec<(f64, u8)>)> = bs
+            .iter()
+            .map(|b| {
+                let len = plan.beads[b.bead].length();
+                let (lo, hi) = (
+                    (b.s - MAX_SHIFT_MM - b.room.0).max(0.0),
+                    (b.s + MAX_SHIFT_MM + b.room.1).min(len),
+                );
+                (b.s, along(plan, frame, seen, b.bead, lo, hi, 2.0 * step))
+            })
+            .collect();
+        let mut best = (0.0f64, i64::MIN);
+        let n = (MAX_SHIFT_MM / 0.05) as i64;
+        for k in -n..=n {
+            let d = k as f64 * 0.05;
+            let mut score = 0i64;
+            for ((s, l), b) in lines.iter().zip(&bs) {
+                for &(x, m) in l {
+                    let rel = x - s - d;
+                    if rel < -b.room.0 || rel > b.room.1 {
+                        continue;
+                    }
+                    let want = if rel < 0.0 { kind.0 } else { kind.1 };
+                    score += if m == want { 1 } else { -1 };
+                }
+            }
+            if score > best.1 || (score == best.1 && d.abs() < best.0.abs()) {
+                best = (d, score);
+            }
+        }
+        shift.insert(kind, best.0);
+    }
+    let mut out = Vec::new();
+    for (index, b) in plan.boundaries.iter().enumerate() {
+        let d = shift.get(&(b.from, b.to)).copied().unwrap_or(0.0);
+        let len = plan.beads[b.bead].length();
+        let (s0, s1) = ((b.s + d - b.room.0).max(0.0), (b.s + d + b.room.1).min(len));
+        let labels = along(plan, frame, seen, b.bead, s0, s1, step);
+        let Some((landed, fit)) = step_fit(&labels, b.from, b.to) else {
+            continue;
+        };
+        // Where a bead turns back on itself its two sides overlap on the plate, and a
+        // boundary that lands there cannot be read off the photo.
+        let bead = &plan.beads[b.bead];
+        if fit < 0.7 || bead.turns.iter().any(|&t| (landed - t).abs() < plan.pitch) {
+            continue;
+        }
+        out.push(Found {
+            index,
+            offset: landed - b.s,
+            fit,
+        });
+    }
+    out
+}
+
+/// Bead width across the path every `every_mm`, mm: the run of printed pixels through
+/// the centre line, perpendicular to it. Where neighbouring beads touch, the run would
+/// span them, so it is cut at 0.75 pitch each side: widths at or over 1.5 pitch say only
+/// "touching". Samples within a pitch of a bead end are skipped.
+pub fn widths(plan: &Plan, frame: &Frame, seen: &[u8], every_mm: f64) -> Vec<(usize, f64, f64)> {
+    let step = 0.25 / frame.px_per_mm;
+    let reach = 0.75 * plan.pitch;
+    let mut out = Vec::new();
+    for (bi, bead) in plan.beads.iter().enumerate() {
+        let n = (bead.length() / every_mm).floor() as usize;
+        for i in 0..=n {
+            let s = i as f64 * every_mm;
+            if s < plan.pitch || s > bead.length() - plan.pitch {
+                continue;
+            }
+            if let Some(w) = width_at(bead, s, frame, seen, step, reach) {
+                out.push((bi, s, w));
+            }
+        }
+    }
+    out
+}
+
+fn width_at(bead: &Bead, s: f64, frame: &Frame, seen: &[u8], step: f64, reach: f64) -> Option<f64> {
+    let (p, u) = bead.at(s);
+    let n = [-u[1], u[0]];
+    if label_at(seen, frame, p) == PLATE {
+        return Some(0.0);
+    }
+    let side = |sign: f64| {
+        let mut t = 0.0;
+        while t < reach {
+            let q = [
+                p[0] + n[0] * sign * (t + step),
+                p[1] + n[1] * sign * (t + step),
+            ];
+            if label_at(seen, frame, q) == PLATE {
+                break;
+            }
+            t += step;
+        }
+        t + 0.5 * step
+    };
+    Some(side(1.0) + side(-1.0))
+}
+
+/// The `q` quantile of `v` (0..1), by sorting a copy; 0 for none.
+pub fn quantile(v: &[f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[((s.len() - 1) as f64 * q).round() as usize]
+}
+
+/// A registration error as the boundaries show it: content that belongs at design point
+/// `p` appears displaced by an affine function of `p - c`, mm. (Quadratic terms, for the
+/// bending a misjudged perspective adds, were tried: they also soak up the real variation
+/// of offsets along a row, and measured worse against the plant.)
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Drift {
+    /// Per axis: coefficients of 1, dx, dy (d = p - c).
+    pub k: [[f64; 3]; 2],
+    /// Centre it is taken about, mm.
+    pub c: [f64; 2],
+}
+
+impl Drift {
+    fn basis(&self, p: [f64; 2]) -> [f64; 3] {
+        [1.0, p[0] - self.c[0], p[1] - self.c[1]]
+    }
+    /// Displacement at design point `p`, mm.
+    pub fn at(&self, p: [f64; 2]) -> [f64; 2] {
+        let b = self.basis(p);
+        std::array::from_fn(|a| (0..3).map(|j| self.k[a][j] * b[j]).sum())
+    }
+    /// The displacement seen along unit direction `u` at `p`, mm.
+    pub fn along(&self, p: [f64; 2], u: [f64; 2]) -> f64 {
+        let d = self.at(p);
+        d[0] * u[0] + d[1] * u[1]
+    }
+}
+
+/// The registration error that `found` reveals. Anything the machine does moves a
+/// boundary along its bead the same way whichever way the bead runs; a misregistered
+/// photo moves it along a fixed direction on the plate, so beads running opposite ways
+/// see it with opposite signs. Fitting each switch direction's own offset plus a
+/// displacement field seen through each bead's direction separates the two. Only the axes
+/// along which every switch direction has beads running both ways are fitted.
+pub fn drift(plan: &Plan, found: &[Found]) -> Drift {
+    let kind = |f: &Found| (plan.boundaries[f.index].from, plan.boundaries[f.index].to);
+    let mut kinds: Vec<(u8, u8)> = found.iter().map(kind).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let dir = |f: &Found| {
+        let b = plan.boundaries[f.index];
+        plan.beads[b.bead].at(b.s).1
+    };
+    let both_ways = |axis: usize| {
+        kinds.iter().all(|&k| {
+            let of_kind = || found.iter().filter(|f| kind(f) == k);
+            of_kind().any(|f| dir(f)[axis] > 0.5) && of_kind().any(|f| dir(f)[axis] < -0.5)
+        })
+    };
+    let axes: Vec<usize> = (0..2).filter(|&a| both_ways(a)).collect();
+    let n = found.len();
+    let mut c = [0.0; 2];
+    for f in found {
+        let p = plan.boundaries[f.index].at;
+        c[0] += p[0] / n.max(1) as f64;
+        c[1] += p[1] / n.max(1) as f64;
+    }
+    let mut out = Drift {
+        c,
+        ..Default::default()
+    };
+    let terms = 3;
+    let unknowns = kinds.len() + terms * axes.len();
+    if axes.is_empty() || n < unknowns + 3 {
+        return out;
+    }
+    let mut m = nalgebra::DMatrix::<f64>::zeros(n, unknowns);
+    let mut y = nalgebra::DVector::<f64>::zeros(n);
+    for (i, f) in found.iter().enumerate() {
+        let b = plan.boundaries[f.index];
+        let u = dir(f);
+        let k = kinds.iter().position(|&k| k == kind(f)).unwrap_or(0);
+        m[(i, k)] = 1.0;
+        let basis = out.basis(b.at);
+        for (j, &a) in axes.iter().enumerate() {
+            for t in 0..terms {
+                m[(i, kinds.len() + terms * j + t)] = u[a] * basis[t];
+            }
+        }
+        y[i] = f.offset;
+    }
+    let Ok(sol) = m.svd(true, true).solve(&y, 1e-9) else {
+        return out;
+    };
+    for (j, &a) in axes.iter().enumerate() {
+        for t in 0..terms {
+            out.k[a][t] = sol[kinds.len() + terms * j + t];
+        }
+    }
+    out
+}
+
+/// `seen` with the displacement `d` taken out: the label of each frame pixel read where
+/// its content shows (nearest pixel).
+pub fn undrift(seen: &[u8], frame: &Frame, d: &Drift) -> Vec<u8> {
+    let (w, h) = frame.size();
+    let mut out = vec![PLATE; seen.len()];
+    for y in 0..h {
+        for x in 0..w {
+            // Frame pixel centre to design point, displaced, back to a frame pixel.
+            let p = [
+                (x as f64 + 0.5) / frame.px_per_mm - frame.margin_mm + frame.lo[0],
+                frame.hi[1] + frame.margin_mm - (y as f64 + 0.5) / frame.px_per_mm,
+            ];
+            let e = d.at(p);
+            out[(y * w + x) as usize] = label_at(seen, frame, [p[0] + e[0], p[1] + e[1]]);
+        }
+    }
+    out
+}

@@ -1,0 +1,479 @@
+//! `dollop inspect`: measures a printed single-layer job from a top-view photo. The photo
+//! is evened out and the print found (`photo`), registered to the job's footprint by its
+//! outline (`register`), its materials told apart by colour (`classify`), and compared
+//! with the design (`measure`): pattern error, boundary offsets along the path, bead
+//! width. `picture` draws the result, `suggest` turns it into config corrections, `synth`
+//! makes test photos from a simulated print. Slicing and simulating are other modules'.
+
+pub mod classify;
+pub mod design;
+pub mod error;
+pub mod measure;
+pub mod photo;
+pub mod picture;
+pub mod register;
+pub mod suggest;
+pub mod synth;
+
+pub use error::InspectError;
+
+use classify::PLATE;
+use design::Plan;
+use dollop::Command;
+use register::Frame;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// How to inspect.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    /// Resolution of the rectified design frame, px per mm.
+    pub px_per_mm: f64,
+    /// Largest photo, pixels.
+    pub max_pixels: u64,
+    /// Share of the paste seen in the design's area that the design cannot explain even
+    /// with every boundary moved to where it was found, over which the photo is taken to
+    /// show another job. (The plain pattern error cannot decide it: boundaries a millimetre
+    /// late in 3 mm squares are wrong over a third of the area, two materials at random
+    /// over half.)
+    pub max_unexplained: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            px_per_mm: 40.0,
+            max_pixels: photo::MAX_PIXELS,
+            max_unexplained: 0.2,
+        }
+    }
+}
+
+/// Offsets of one kind of switch (or all), mm.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OffsetStats {
+    /// Boundaries measured.
+    pub n: usize,
+    /// Mean signed offset (positive: late).
+    pub mean: f64,
+    /// 95th percentile of |offset|.
+    pub p95: f64,
+    /// Largest |offset|.
+    pub max: f64,
+}
+
+impl OffsetStats {
+    fn of(v: &[f64]) -> Self {
+        let abs: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+        OffsetStats {
+            n: v.len(),
+            mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
+            p95: measure::quantile(&abs, 0.95),
+            max: abs.iter().copied().fold(0.0, f64::max),
+        }
+    }
+}
+
+/// What the photo showed.
+pub struct Inspection {
+    /// The photo.
+    pub path: PathBuf,
+    /// The plan it was compared with.
+    pub plan: Plan,
+    /// The frame it was rectified into.
+    pub frame: Frame,
+    /// Per frame pixel: the material the photo shows, or `PLATE`.
+    pub seen: Vec<u8>,
+    /// Per frame pixel: the design's material, or `PLATE`.
+    pub design: Vec<u8>,
+    /// The photo rectified, for pictures.
+    pub rectified: image::RgbImage,
+    /// The photo's corners of the print, px, and the quarter turn that fitted.
+    pub corners: [[f64; 2]; 4],
+    /// Quarter turns from the photo's corner order to the design's.
+    pub turn: usize,
+    /// Learned colour of each material (index into the plan's materials), 0..1 RGB.
+    pub colours: Vec<(u8, [f32; 3])>,
+    /// Share of the design's area showing the wrong material or none.
+    pub pattern_error: f64,
+    /// Share of the paste seen inside the design's area that shows another material than
+    /// the design with every found boundary moved to where it was found: what offsets
+    /// along the path do not explain.
+    pub unexplained: f64,
+    /// Boundaries found.
+    pub found: Vec<measure::Found>,
+    /// Bead width samples: (bead, s, width mm).
+    pub widths: Vec<(usize, f64, f64)>,
+}
+
+impl Inspection {
+    /// Offsets of all found boundaries.
+    pub fn offsets(&self) -> OffsetStats {
+        OffsetStats::of(&self.found.iter().map(|f| f.offset).collect::<Vec<_>>())
+    }
+
+    /// Offsets of each switch direction (from, to) present.
+    pub fn offsets_by_switch(&self) -> Vec<((u8, u8), OffsetStats)> {
+        let mut keys: Vec<(u8, u8)> = self
+            .found
+            .iter()
+            .map(|f| {
+                let b = self.plan.boundaries[f.index];
+                (b.from, b.to)
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        keys.into_iter()
+            .map(|k| {
+                let v: Vec<f64> = self
+                    .found
+                    .iter()
+                    .filter(|f| {
+                        let b = self.plan.boundaries[f.index];
+                        (b.from, b.to) == k
+                    })
+                    .map(|f| f.offset)
+                    .collect();
+                (k, OffsetStats::of(&v))
+            })
+            .collect()
+    }
+
+    /// The report `dollop inspect` prints.
+    pub fn report(&self, names: &[String]) -> String {
+        let name = |m: u8| {
+            names
+                .get(m as usize)
+                .cloned()
+                .unwrap_or_else(|| format!("material {m}"))
+        };
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "print found: corners at ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) px; {} quarter turn(s) to the design",
+            self.corners[0][0], self.corners[0][1], self.corners[1][0], self.corners[1][1],
+            self.corners[2][0], self.corners[2][1], self.corners[3][0], self.corners[3][1], self.turn
+        );
+        for (m, c) in &self.colours {
+            let _ = writeln!(
+                s,
+                "colour of {}: #{:02x}{:02x}{:02x}",
+                name(*m),
+                (c[0] * 255.0) as u8,
+                (c[1] * 255.0) as u8,
+                (c[2] * 255.0) as u8
+            );
+        }
+        let _ = writeln!(
+            s,
+            "pattern error     {:.2} % of the design's area shows the wrong material or none ({:.2} % of the paste differs with the boundaries where they landed)",
+            100.0 * self.pattern_error,
+            100.0 * self.unexplained
+        );
+        let all = self.offsets();
+        if all.n == 0 {
+            let _ = writeln!(s, "boundaries        none found");
+        } else {
+            let _ = writeln!(
+                s,
+                "boundaries        {} of {} found; offset along the path mean {:+.3} mm, p95 {:.3} mm, max {:.3} mm",
+                all.n,
+                self.plan.boundaries.len(),
+                all.mean,
+                all.p95,
+                all.max
+            );
+            for ((a, b), st) in self.offsets_by_switch() {
+                let _ = writeln!(
+                    s,
+                    "  {} -> {}: {} boundaries, mean {:+.3} mm, p95 {:.3} mm, max {:.3} mm",
+                    name(a),
+                    name(b),
+                    st.n,
+                    st.mean,
+                    st.p95,
+                    st.max
+                );
+            }
+        }
+        let w: Vec<f64> = self.widths.iter().map(|x| x.2).collect();
+        if !w.is_empty() {
+            let cap = 1.5 * self.plan.pitch;
+            let touching = w.iter().filter(|&&x| x >= cap - 1e-9).count();
+            let _ = writeln!(
+                s,
+                "bead width        mean {:.3} mm, p1 {:.3} mm, p99 {:.3} mm over {} samples (pitch {:.2} mm; {} where neighbours touch)",
+                w.iter().sum::<f64>() / w.len() as f64,
+                measure::quantile(&w, 0.01),
+                measure::quantile(&w, 0.99),
+                w.len(),
+                self.plan.pitch,
+                touching
+            );
+            if let Some((bi, s_mm, x)) = self
+                .widths
+                .iter()
+                .min_by(|a, b| a.2.total_cmp(&b.2))
+                .copied()
+            {
+                let (p, _) = self.plan.beads[bi].at(s_mm);
+                let _ = writeln!(
+                    s,
+                    "  narrowest {:.3} mm at ({:.2}, {:.2}) mm",
+                    x, p[0], p[1]
+                );
+            }
+        }
+        s
+    }
+}
+
+/// Bead width and corner radius of the machine in `config` (validated by the caller).
+pub fn geometry(config: &dollop::config::Config) -> (f64, f64) {
+    let radius = config
+        .validate::<f64, { dollop::config::MAX_CONFIG_INLETS }>()
+        .map_or(0.0, |m| m.corner_radius);
+    (config.channel.line_pitch_mm as f64, radius)
+}
+
+/// Inspects the photo at `path` against `commands` (starting at `start_um`) printed on
+/// the machine of `config`.
+pub fn inspect(
+    path: &Path,
+    commands: &[Command],
+    start_um: [i32; 3],
+    config: &dollop::config::Config,
+    o: &Options,
+) -> Result<Inspection, InspectError> {
+    let photo = photo::load(path, o.max_pixels)?;
+    inspect_photo(path, photo, commands, start_um, config, o)
+}
+
+/// `inspect` on a photo already loaded.
+pub fn inspect_photo(
+    path: &Path,
+    photo: photo::Photo,
+    commands: &[Command],
+    start_um: [i32; 3],
+    config: &dollop::config::Config,
+    o: &Options,
+) -> Result<Inspection, InspectError> {
+    let (pitch, corner_radius) = geometry(config);
+    if !(o.px_per_mm.is_finite() && (2.0..=200.0).contains(&o.px_per_mm)) {
+        return Err(InspectError::Argument(format!(
+            "--px-per-mm {} must be from 2 to 200",
+            o.px_per_mm
+        )));
+    }
+    let bad = |message: String| InspectError::Photo {
+        path: path.to_path_buf(),
+        message,
+    };
+    let plan = design::plan(commands, start_um, pitch, corner_radius);
+    let k = plan.materials.len();
+    if plan.beads.is_empty() || k == 0 {
+        return Err(InspectError::Job {
+            path: path.to_path_buf(),
+            message: "the job prints nothing to compare the photo with".into(),
+        });
+    }
+    let frame = Frame {
+        lo: plan.lo,
+        hi: plan.hi,
+        px_per_mm: o.px_per_mm,
+        margin_mm: 2.0 * pitch,
+    };
+    let (fw, fh) = frame.size();
+    if u64::from(fw) * u64::from(fh) > 100_000_000 {
+        return Err(InspectError::Argument(format!(
+            "the design frame would be {fw} x {fh} px; lower --px-per-mm"
+        )));
+    }
+    let corners = register::corners(&photo.print).ok_or_else(|| {
+        bad("the print's outline is not a quadrilateral that can be registered; photograph the whole print from above".into())
+    })?;
+    // Colours: k-means over the print's pixels (a sample of at most 200 000).
+    let every = ((photo.print_px / 200_000) as usize).max(1);
+    let samples: Vec<[f32; 3]> = photo
+        .rgb
+        .iter()
+        .zip(photo.print.pixels())
+        .filter(|(_, m)| m[0] > 0)
+        .map(|(c, _)| *c)
+        .step_by(every)
+        .collect();
+    let palette = classify::kmeans(&samples, k, 7);
+    check_colour_count(&samples, &palette, k).map_err(bad)?;
+    let design = measure::paint(&plan, &frame);
+    // The turn whose colours agree best with the design.
+    // (agreement, turn, labels, cluster names, picture) of the best turn so far.
+    type Turn = (f64, usize, Vec<u8>, Vec<u8>, image::RgbImage);
+    let mut best: Option<Turn> = None;
+    for turn in 0..4 {
+        let Some(proj) = register::projection(corners, &frame, turn) else {
+            continue;
+        };
+        let (rgb, pic) = register::rectify(&photo, &frame, proj);
+        let clusters: Vec<u8> = rgb
+            .iter()
+            .map(|&c| classify::label(&palette.centres, c).map_or(PLATE, |j| j as u8))
+            .collect();
+        let (names, agree) = classify::name_clusters(&clusters, &design, &plan.materials);
+        if best.as_ref().is_none_or(|b| agree > b.0) {
+            let seen = clusters
+                .iter()
+                .map(|&c| if c == PLATE { PLATE } else { names[c as usize] })
+                .collect();
+            best = Some((agree, turn, seen, names, pic));
+        }
+    }
+    let (_, turn, mut seen, names, mut rectified) =
+        best.ok_or_else(|| bad("the print's corners do not define a perspective".into()))?;
+    // The outline registers the print's edge, which sits where the outer beads' width
+    // puts it: refine from the boundaries (see `measure::drift`), twice.
+    let label = |rgb: &[[f32; 3]]| -> Vec<u8> {
+        rgb.iter()
+            .map(|&c| classify::label(&palette.centres, c).map_or(PLATE, |j| names[j]))
+            .collect()
+    };
+    let mut targets = frame.corners();
+    let design_corners = [
+        [plan.lo[0], plan.hi[1]],
+        [plan.hi[0], plan.hi[1]],
+        [plan.hi[0], plan.lo[1]],
+        [plan.lo[0], plan.lo[1]],
+    ];
+    for _ in 0..2 {
+        let found = measure::boundaries(&plan, &frame, &seen);
+        let d = measure::drift(&plan, &found);
+        for k in 0..4 {
+            // The content for design corner q shows at q + d(q): aim the photo's corner
+            // that much the other way (frame y runs down).
+            let e = d.at(design_corners[k]);
+            targets[k] = [
+                targets[k][0] - e[0] * frame.px_per_mm,
+                targets[k][1] + e[1] * frame.px_per_mm,
+            ];
+        }
+        let Some(proj) = register::projection_to(corners, targets, turn) else {
+            break;
+        };
+        let (rgb, pic) = register::rectify(&photo, &frame, proj);
+        seen = label(&rgb);
+        rectified = pic;
+    }
+    // What the corners cannot take out (a perspective the four corners misjudged) is
+    // taken out of the offsets themselves.
+    let mut found = measure::boundaries(&plan, &frame, &seen);
+    let residual = measure::drift(&plan, &found);
+    for f in &mut found {
+        let b = plan.boundaries[f.index];
+        f.offset -= residual.along(b.at, plan.beads[b.bead].at(b.s).1);
+    }
+    // The same residual, taken out of the labels: each frame pixel reads the label where
+    // its content shows.
+    let seen = measure::undrift(&seen, &frame, &residual);
+    let pattern_error = measure::pattern_error(&design, &seen);
+    let mut moved = plan.clone();
+    for f in &found {
+        let b = plan.boundaries[f.index];
+        if let Some(run) = moved.beads[b.bead].runs.iter_mut().find(|r| r.0 == b.s) {
+            run.0 = (b.s + f.offset).max(0.0);
+        }
+    }
+    for bead in &mut moved.beads {
+        bead.runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    // Only where paste shows: gaps between thin beads are not another job.
+    let unexplained = {
+        let want = measure::paint(&moved, &frame);
+        let (mut n, mut bad) = (0u64, 0u64);
+        for (&d, &s) in want.iter().zip(&seen) {
+            if d != PLATE && s != PLATE {
+                n += 1;
+                bad += u64::from(d != s);
+            }
+        }
+        bad as f64 / n.max(1) as f64
+    };
+    if unexplained > o.max_unexplained {
+        return Err(bad(format!(
+            "the print does not match the job: even with its boundaries where they were found, {:.0} % of the paste shows another material than the design (over {:.0} %); is this the photo of this job?",
+            100.0 * unexplained,
+            100.0 * o.max_unexplained
+        )));
+    }
+    if found.len() * 2 < plan.boundaries.len() {
+        return Err(bad(format!(
+            "the print does not match the job: only {} of its {} material boundaries were found; is this the photo of this job?",
+            found.len(),
+            plan.boundaries.len()
+        )));
+    }
+    let widths = measure::widths(&plan, &frame, &seen, 0.5);
+    let colours = names
+        .iter()
+        .zip(&palette.centres)
+        .map(|(&m, c)| {
+            (
+                m,
+                std::array::from_fn(|i| (c[i] * photo.plate[i]).clamp(0.0, 1.0)),
+            )
+        })
+        .collect();
+    Ok(Inspection {
+        path: path.to_path_buf(),
+        plan,
+        frame,
+        seen,
+        design,
+        rectified,
+        corners,
+        turn,
+        colours,
+        pattern_error,
+        unexplained,
+        found,
+        widths,
+    })
+}
+
+/// Refuses a photo whose print shows clearly more, or fewer, distinct colours than the
+/// job's `k` materials.
+fn check_colour_count(
+    samples: &[[f32; 3]],
+    palette: &classify::Palette,
+    k: usize,
+) -> Result<(), String> {
+    // Fewer: two learned colours nearly the same.
+    for i in 0..k {
+        for j in i + 1..k {
+            let (a, b) = (palette.centres[i], palette.centres[j]);
+            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            if d < 0.08 {
+                return Err(format!(
+                    "the print shows fewer distinct colours than the job's {k} materials; is this the photo of this job, and are the pastes coloured apart?"
+                ));
+            }
+        }
+    }
+    // More: one more cluster that is well apart, well populated and halves the spread.
+    if k < 6 {
+        let more = classify::kmeans(samples, k + 1, 11);
+        let mut count = vec![0usize; k + 1];
+        for &s in samples {
+            if let (Some(j), _) = classify::nearest(&more.centres, s) {
+                count[j] += 1;
+            }
+        }
+        let smallest =
+            count.iter().copied().min().unwrap_or(0) as f64 / samples.len().max(1) as f64;
+        if more.spread < 0.35 * palette.spread && smallest > 0.04 {
+            return Err(format!(
+                "the print shows more distinct colours than the job's {k} material(s); is this the photo of this job?"
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,294 @@
+//! Corrections from an inspection, by asking the reference plant: for each parameter that
+//! could be off (the channel and filament volume through `channel_length_mm`, the valves'
+//! dead time, each paste's viscosity) the value under which the simulated print's
+//! boundaries land where the photo found them, by a one-dimensional search; the parameter
+//! whose best value explains the offsets best is the one believed off. A constant offset
+//! in both switch directions points at the volume, an offset that grows with head speed
+//! at dead time, a different offset per direction (or a bead narrower than its pitch) at
+//! a viscosity; one print at one speed cannot tell volume from dead time, and the report
+//! says when two explain it alike. The search and its interval are this module's; the
+//! physics is `dollop_sim`'s.
+
+use super::synth::{self, Truth};
+use super::Inspection;
+use dollop::config::Config;
+use dollop_sim::{Job, RunOptions};
+use std::fmt::Write as _;
+
+/// One parameter's best explanation of the measured offsets.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    /// What was varied, for people.
+    pub what: String,
+    /// The truth at its best value.
+    pub truth: Truth,
+    /// Its best value and 95 % interval, in the parameter's own unit.
+    pub value: (f64, f64, f64),
+    /// RMS of measured minus simulated offsets at the best value, mm.
+    pub rms: f64,
+}
+
+/// The corrections.
+#[derive(Clone, Debug)]
+pub struct Suggestion {
+    /// RMS of the offsets the config as it is leaves unexplained, mm.
+    pub rms_now: f64,
+    /// Every parameter's fit, best first.
+    pub fits: Vec<Fit>,
+    /// What was concluded, one line each.
+    pub lines: Vec<String>,
+    /// The TOML fragment, if anything is worth changing.
+    pub fragment: Option<String>,
+    /// The config with the best correction applied.
+    pub config: Config,
+}
+
+/// A parameter to search: its name, the truth at a search value, the range searched and
+/// whether the value is a log scale factor.
+type Candidate = (String, Box<dyn Fn(f64) -> Truth>, (f64, f64), bool);
+
+/// Offsets the photo cannot resolve better than this (RMS, mm): nothing is changed.
+pub const DEADBAND_MM: f64 = 0.02;
+
+/// Simulated offset of each found boundary (same order), or `None` where the simulation
+/// lost one; measured with the executor on `config` against `truth`'s plant.
+fn simulated(i: &Inspection, config: &Config, job: &Job, truth: &Truth) -> Option<Vec<f64>> {
+    let plant = synth::plant_config(config, &truth.physics(config)).ok()?;
+    let r = dollop_sim::run_with_plant::<f32>(config, &plant, job, &RunOptions::default(), |_| {})
+        .ok()?;
+    if r.fault.is_some() {
+        return None;
+    }
+    i.found
+        .iter()
+        .map(|f| {
+            let b = i.plan.boundaries[f.index];
+            r.metrics
+                .boundaries
+                .iter()
+                .find(|p| (p.point[0] - b.at[0]).hypot(p.point[1] - b.at[1]) < 0.02)
+                .map(|p| p.error())
+        })
+        .collect()
+}
+
+fn sse(i: &Inspection, sim: &[f64]) -> f64 {
+    i.found
+        .iter()
+        .zip(sim)
+        .map(|(f, s)| (f.offset - s).powi(2))
+        .sum()
+}
+
+/// Golden-section search of `f` over [lo, hi] (`f` may fail: then +inf), `iters` steps.
+fn golden(mut lo: f64, mut hi: f64, iters: usize, f: &mut impl FnMut(f64) -> f64) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            (b, fb) = (a, fa);
+            a = hi - g * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            (a, fa) = (b, fb);
+            b = lo + g * (hi - lo);
+            fb = f(b);
+        }
+    }
+    if fa < fb {
+        (a, fa)
+    } else {
+        (b, fb)
+    }
+}
+
+/// Suggests corrections to `config` (which `job` was printed with) from `i`.
+pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
+    let n = i.found.len();
+    let base = simulated(i, config, job, &Truth::default());
+    let rms = |s: f64| (s / n.max(1) as f64).sqrt();
+    let rms_now = base.as_ref().map_or(f64::INFINITY, |b| rms(sse(i, b)));
+    let mut lines = Vec::new();
+    let mut fits: Vec<Fit> = Vec::new();
+    if n < 3 || base.is_none() {
+        lines.push(format!(
+            "{n} boundaries found{}; at least 3, and a job the simulator can run, are needed to suggest anything",
+            if base.is_none() { " and the job does not simulate" } else { "" }
+        ));
+    } else {
+        let mut candidates: Vec<Candidate> = vec![
+            (
+                "channel and filament volume (channel_length_mm)".into(),
+                Box::new(|x: f64| Truth {
+                    channel_scale: x.exp(),
+                    ..Default::default()
+                }),
+                (0.5f64.ln(), 2f64.ln()),
+                true,
+            ),
+            (
+                "valve dead time (valve_open_delay_ms, valve_close_delay_ms)".into(),
+                Box::new(|x: f64| Truth {
+                    dead_time_ms: x,
+                    ..Default::default()
+                }),
+                (-10.0, 40.0),
+                false,
+            ),
+        ];
+        for &m in &i.plan.materials {
+            let name = config
+                .inlets
+                .get(m as usize)
+                .map_or(format!("inlet {m}"), |x| x.material.to_string());
+            candidates.push((
+                format!("viscosity of inlet {m} ({name})"),
+                Box::new(move |x: f64| {
+                    let mut v = [1.0; 4];
+                    if let Some(s) = v.get_mut(m as usize) {
+                        *s = x.exp();
+                    }
+                    Truth {
+                        viscosity_scale: v,
+                        ..Default::default()
+                    }
+                }),
+                (0.5f64.ln(), 2f64.ln()),
+                true,
+            ));
+        }
+        let mut misses = Vec::new();
+        for (what, truth_of, (lo, hi), log) in candidates {
+            let mut f = |x: f64| {
+                simulated(i, config, job, &truth_of(x)).map_or(f64::INFINITY, |s| sse(i, &s))
+            };
+            let (x, best) = golden(lo, hi, 14, &mut f);
+            // A best value at the edge of the search is no explanation, only the least bad.
+            let edge = (x - lo).min(hi - x) < 0.01 * (hi - lo);
+            if !best.is_finite() || edge {
+                misses.push(format!(
+                    "  {what}: no value in the range searched explains the offsets"
+                ));
+                continue;
+            }
+            // Interval from the curvature of the squared error at the best value.
+            // (A neighbour the simulator cannot match boundary for boundary counts as
+            // unknown, and the step shrinks until both sides can be evaluated.)
+            let mut h = (hi - lo) * 0.02;
+            let mut curv = f64::NAN;
+            for _ in 0..6 {
+                let (up, down) = (f(x + h), f(x - h));
+                if up.is_finite() && down.is_finite() {
+                    curv = (up + down - 2.0 * best) / (h * h);
+                    break;
+                }
+                h *= 0.3;
+            }
+            let var = if curv > 0.0 && n > 1 {
+                2.0 * best / (n - 1) as f64 / curv
+            } else {
+                f64::NAN
+            };
+            let half = 1.96 * var.sqrt();
+            let shown = |v: f64| if log { v.exp() } else { v };
+            fits.push(Fit {
+                what,
+                truth: truth_of(x),
+                value: (shown(x), shown(x - half), shown(x + half)),
+                rms: rms(best),
+            });
+        }
+        fits.sort_by(|a, b| a.rms.total_cmp(&b.rms));
+        lines.push(format!(
+            "as configured the simulated boundaries miss the measured ones by {rms_now:.3} mm RMS over {n} boundaries"
+        ));
+        for f in &fits {
+            lines.push(format!(
+                "  {}: {} {:.4} [{:.4}, {:.4}] leaves {:.3} mm RMS",
+                f.what,
+                if f.truth.dead_time_ms != 0.0 {
+                    "+ ms"
+                } else {
+                    "x"
+                },
+                f.value.0,
+                f.value.1,
+                f.value.2,
+                f.rms
+            ));
+        }
+        lines.extend(misses);
+    }
+    let best = fits.first().cloned();
+    let mut out = config.clone();
+    let mut fragment = None;
+    match best {
+        Some(b) if rms_now > DEADBAND_MM && b.rms < 0.7 * rms_now => {
+            out = b.truth.physics(config);
+            lines.push(format!(
+                "believed off: {} ({:.3} -> explains all but {:.3} mm RMS)",
+                b.what, b.value.0, b.rms
+            ));
+            if let Some(second) = fits.get(1) {
+                if second.rms < 1.2 * b.rms {
+                    lines.push(format!(
+                        "  {} explains it almost as well: print switches at several head speeds (`dollop slice --calibration-pattern`) to tell them apart",
+                        second.what
+                    ));
+                }
+            }
+            fragment = Some(fragment_for(i, config, &out));
+        }
+        Some(_) if rms_now <= DEADBAND_MM => lines.push(format!(
+            "nothing to correct: the boundaries land where the config says within {rms_now:.3} mm RMS"
+        )),
+        Some(_) => lines.push(
+            "no single parameter explains the offsets (none halves the misfit): check the photo and the job, or calibrate the pastes (`dollop calibrate`)".into(),
+        ),
+        None => {}
+    }
+    Suggestion {
+        rms_now,
+        fits,
+        lines,
+        fragment,
+        config: out,
+    }
+}
+
+/// The TOML lines that turn `from` into `to`.
+fn fragment_for(i: &Inspection, from: &Config, to: &Config) -> String {
+    let mut s = format!(
+        "# dollop inspect {} --suggest: corrections to the machine config.\n",
+        i.path.display()
+    );
+    if to.channel.channel_length_mm != from.channel.channel_length_mm {
+        let _ = writeln!(
+            s,
+            "[channel]\nchannel_length_mm = {:.4}",
+            to.channel.channel_length_mm
+        );
+    }
+    for (k, (a, b)) in from.inlets.iter().zip(&to.inlets).enumerate() {
+        if a.valve_open_delay_ms != b.valve_open_delay_ms {
+            let _ = writeln!(
+                s,
+                "# inlet {k} ({}): valve_open_delay_ms = {:.2}, valve_close_delay_ms = {:.2}",
+                a.material, b.valve_open_delay_ms, b.valve_close_delay_ms
+            );
+        }
+        if a.rheology != b.rheology {
+            let r = toml::to_string(&b.rheology).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "# inlet {k} ({}): rheology = {{ {} }}",
+                a.material,
+                r.trim().replace('\n', ", ")
+            );
+        }
+    }
+    s
+}

@@ -1,0 +1,356 @@
+//! `dollop inspect` on photos synthesized from the reference plant's deposit (the job run
+//! against a plant whose channel, valves or paste differ from the config by known amounts,
+//! painted in food colours, then photographed with a random perspective, uneven light,
+//! blur and noise): the boundary offsets it measures against the plant's own, its pattern
+//! error against the deposit's, and a print re-simulated after one `--suggest` correction.
+
+use dollop::config::Config;
+use dollop_host::inspect::register::Frame;
+use dollop_host::inspect::synth::{self, Camera, Truth};
+use dollop_host::inspect::{self, design, measure, suggest};
+use dollop_sim::designs::{self, Fill, Job};
+use std::path::{Path, PathBuf};
+
+fn config() -> Config {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/seed-paper-valves.toml");
+    toml::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn job() -> Job {
+    let fill = Fill {
+        origin_mm: [20.0, 20.0],
+        width_mm: 12.0,
+        rows: 12,
+        pitch_mm: 0.8,
+        layers: 1,
+        layer_mm: 0.6,
+        cell_mm: 0.1,
+        prime_mm: 8.0,
+    };
+    designs::boustrophedon(&fill, designs::chessboard(3.0))
+}
+
+/// A print of `job` on the machine `truth` describes, photographed by `cam`: the photo's
+/// path, the plant's own boundaries and pattern error.
+struct Print {
+    photo: PathBuf,
+    plant: Vec<dollop_sim::metrics::Boundary>,
+    pattern_error: f64,
+}
+
+fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> Print {
+    let job = job();
+    let physics = truth.physics(&config());
+    let plant = synth::plant_config(exec, &physics).unwrap();
+    let pitch = exec.channel.line_pitch_mm as f64;
+    let (_, radius) = inspect::geometry(exec);
+    let plan = design::plan(&job.commands, job.start_um, pitch, radius);
+    let frame = Frame {
+        lo: plan.lo,
+        hi: plan.hi,
+        px_per_mm: 40.0,
+        margin_mm: 2.0 * pitch,
+    };
+    let (deposit, run) = synth::deposit(exec, &plant, &job, frame).unwrap();
+    assert!(run.fault.is_none(), "{:?}", run.fault);
+    let pattern_error = measure::pattern_error(&measure::paint(&plan, &frame), &deposit.px);
+    let (img, _) = synth::photograph(&deposit, &synth::FOOD, synth::PLATE_COLOUR, cam);
+    let photo = dir.join(name);
+    img.save(&photo).unwrap();
+    Print {
+        photo,
+        plant: run.metrics.boundaries,
+        pattern_error,
+    }
+}
+
+fn inspect(p: &Print) -> inspect::Inspection {
+    let job = job();
+    inspect::inspect(
+        &p.photo,
+        &job.commands,
+        job.start_um,
+        &config(),
+        &Default::default(),
+    )
+    .unwrap()
+}
+
+/// |inspect - plant| for every boundary both measured, matched by design point.
+fn offset_errors(ins: &inspect::Inspection, plant: &[dollop_sim::metrics::Boundary]) -> Vec<f64> {
+    ins.found
+        .iter()
+        .filter_map(|f| {
+            let b = ins.plan.boundaries[f.index];
+            plant
+                .iter()
+                .find(|p| (p.point[0] - b.at[0]).hypot(p.point[1] - b.at[1]) < 0.02)
+                .map(|p| (f.offset - p.error()).abs())
+        })
+        .collect()
+}
+
+fn p95(v: &[f64]) -> f64 {
+    measure::quantile(v, 0.95)
+}
+
+/// Re-simulates with the corrected config against the same physics: p95 |boundary error|.
+fn resimulated_p95(corrected: &Config, truth: &Truth) -> f64 {
+    let job = job();
+    let plant = synth::plant_config(corrected, &truth.physics(&config())).unwrap();
+    let r = dollop_sim::run_with_plant::<f32>(corrected, &plant, &job, &Default::default(), |_| {})
+        .unwrap();
+    let e: Vec<f64> = r
+        .metrics
+        .boundaries
+        .iter()
+        .map(|b| b.error().abs())
+        .collect();
+    p95(&e)
+}
+
+fn check(name: &str, truth: Truth, seed: u64) {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = config();
+    let cam = Camera {
+        seed,
+        ..Default::default()
+    };
+    let p = print(dir.path(), &format!("{name}.png"), &exec, &truth, &cam);
+    let ins = inspect(&p);
+    let errs = offset_errors(&ins, &p.plant);
+    let plant_p95 = p95(&p.plant.iter().map(|b| b.error().abs()).collect::<Vec<_>>());
+    eprintln!(
+        "{name}: plant p95 {plant_p95:.3} mm; inspect found {}/{} boundaries, offset vs plant worst {:.4} mm, p95 {:.4} mm; pattern error {:.2} % (plant {:.2} %), unexplained {:.2} %",
+        ins.found.len(),
+        ins.plan.boundaries.len(),
+        errs.iter().copied().fold(0.0, f64::max),
+        p95(&errs),
+        100.0 * ins.pattern_error,
+        100.0 * p.pattern_error,
+        100.0 * ins.unexplained
+    );
+    // Boundaries that land within a pitch of a turn are not read (see measure::boundaries).
+    assert!(
+        ins.found.len() * 4 >= ins.plan.boundaries.len() * 3,
+        "{name}: found {} of {}",
+        ins.found.len(),
+        ins.plan.boundaries.len()
+    );
+    assert_eq!(errs.len(), ins.found.len(), "{name}: unmatched boundaries");
+    // 95 % of the boundaries within 0.05 mm of the plant's own; a boundary that lands a
+    // millimetre or more late near a turn can be read worse (measured: up to 0.22 mm).
+    let worst = errs.iter().copied().fold(0.0, f64::max);
+    assert!(
+        p95(&errs) <= 0.05,
+        "{name}: offsets off the plant's by {:.4} mm (p95)",
+        p95(&errs)
+    );
+    assert!(
+        worst <= 0.25,
+        "{name}: offsets off the plant's by up to {worst:.4} mm"
+    );
+    assert!(
+        (ins.pattern_error - p.pattern_error).abs() <= 0.03,
+        "{name}: pattern error {:.4} vs the plant's {:.4}",
+        ins.pattern_error,
+        p.pattern_error
+    );
+    let s = suggest::suggest(&ins, &exec, &job());
+    let after = resimulated_p95(&s.config, &truth);
+    eprintln!(
+        "{name}: suggestions {:?}; re-simulated p95 {after:.4} mm",
+        s.lines
+    );
+    assert!(
+        after <= 0.1,
+        "{name}: after the correction p95 is {after:.4} mm"
+    );
+}
+
+#[test]
+fn a_longer_channel_is_measured_and_corrected() {
+    check(
+        "channel+20",
+        Truth {
+            channel_scale: 1.2,
+            ..Default::default()
+        },
+        3,
+    );
+}
+
+#[test]
+fn a_shorter_channel_is_measured_and_corrected() {
+    check(
+        "channel-20",
+        Truth {
+            channel_scale: 0.8,
+            ..Default::default()
+        },
+        4,
+    );
+}
+
+#[test]
+fn a_slower_valve_is_measured_and_corrected() {
+    check(
+        "dead+10",
+        Truth {
+            dead_time_ms: 10.0,
+            ..Default::default()
+        },
+        5,
+    );
+}
+
+#[test]
+fn a_thicker_paste_is_measured_and_corrected() {
+    check(
+        "viscosity+20",
+        Truth {
+            viscosity_scale: [1.0, 1.2, 1.0, 1.0],
+            ..Default::default()
+        },
+        6,
+    );
+}
+
+/// The photo of a correct print and its deposit, for the refusals below.
+fn good_print(dir: &Path) -> (synth::Deposit, PathBuf) {
+    let exec = config();
+    let job = job();
+    let plant = synth::plant_config(&exec, &exec).unwrap();
+    let (pitch, radius) = inspect::geometry(&exec);
+    let plan = design::plan(&job.commands, job.start_um, pitch, radius);
+    let frame = Frame {
+        lo: plan.lo,
+        hi: plan.hi,
+        px_per_mm: 40.0,
+        margin_mm: 2.0 * pitch,
+    };
+    let (deposit, _) = synth::deposit(&exec, &plant, &job, frame).unwrap();
+    let (img, _) = synth::photograph(
+        &deposit,
+        &synth::FOOD,
+        synth::PLATE_COLOUR,
+        &Camera::default(),
+    );
+    let path = dir.join("good.png");
+    img.save(&path).unwrap();
+    (deposit, path)
+}
+
+fn refused(photo: &Path, commands: &[dollop::Command], start_um: [i32; 3], needle: &str) {
+    let e = inspect::inspect(photo, commands, start_um, &config(), &Default::default())
+        .err()
+        .unwrap_or_else(|| panic!("{} was accepted", photo.display()));
+    let msg = e.to_string();
+    assert_eq!(msg.lines().count(), 1, "{msg}");
+    assert!(msg.contains(needle), "{msg:?} lacks {needle:?}");
+    assert!(
+        msg.contains(&photo.file_name().unwrap().to_string_lossy().to_string()),
+        "{msg}"
+    );
+}
+
+#[test]
+fn bad_photos_are_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let (deposit, good) = good_print(dir.path());
+    let job = job();
+    // The good photo passes and measures a boundary offset as late as the plant's (a
+    // tenth of a millimetre on this machine), and a pattern error to match.
+    let ins = inspect::inspect(
+        &good,
+        &job.commands,
+        job.start_um,
+        &config(),
+        &Default::default(),
+    )
+    .unwrap();
+    assert!(ins.offsets().p95 < 0.2, "{:?}", ins.offsets());
+
+    // No print: only the plate.
+    let img = image::open(&good).unwrap().to_rgb8();
+    let plate = image::RgbImage::from_fn(img.width(), img.height(), |x, y| {
+        let k = 1.0 - 0.2 * x as f32 / img.width() as f32 - 0.1 * y as f32 / img.height() as f32;
+        image::Rgb(synth::PLATE_COLOUR.map(|c| (c as f32 * k) as u8))
+    });
+    let path = dir.path().join("plate.png");
+    plate.save(&path).unwrap();
+    refused(&path, &job.commands, job.start_um, "no print found");
+
+    // Too dark.
+    let dark = image::RgbImage::from_fn(img.width(), img.height(), |x, y| {
+        image::Rgb(img.get_pixel(x, y).0.map(|c| c / 20))
+    });
+    let path = dir.path().join("dark.png");
+    dark.save(&path).unwrap();
+    refused(&path, &job.commands, job.start_um, "too dark");
+
+    // The wrong job: stripes 1.5 mm wide where the photo shows 3 mm squares.
+    let fill = Fill {
+        origin_mm: [20.0, 20.0],
+        width_mm: 12.0,
+        rows: 12,
+        pitch_mm: 0.8,
+        layers: 1,
+        layer_mm: 0.6,
+        cell_mm: 0.1,
+        prime_mm: 8.0,
+    };
+    let stripes = designs::boustrophedon(&fill, designs::stripes(1.5));
+    refused(
+        &good,
+        &stripes.commands,
+        stripes.start_um,
+        "does not match the job",
+    );
+
+    // Three colours for a two-material job; one colour for two.
+    let mut three = synth::FOOD;
+    three[1] = synth::FOOD[1];
+    let (w, _) = deposit.frame.size();
+    let mut split = synth::Deposit {
+        frame: deposit.frame,
+        px: deposit.px.clone(),
+    };
+    for (i, p) in split.px.iter_mut().enumerate() {
+        if *p == 1 && (i as u32 % w) > w / 2 {
+            *p = 2;
+        }
+    }
+    let (img, _) = synth::photograph(&split, &three, synth::PLATE_COLOUR, &Camera::default());
+    let path = dir.path().join("three.png");
+    img.save(&path).unwrap();
+    refused(&path, &job.commands, job.start_um, "more distinct colours");
+    let one = [
+        synth::FOOD[0],
+        synth::FOOD[0],
+        synth::FOOD[0],
+        synth::FOOD[0],
+    ];
+    let (img, _) = synth::photograph(&deposit, &one, synth::PLATE_COLOUR, &Camera::default());
+    let path = dir.path().join("one.png");
+    img.save(&path).unwrap();
+    refused(&path, &job.commands, job.start_um, "fewer distinct colours");
+
+    // Not an image, and one too large for the limit.
+    let path = dir.path().join("notes.png");
+    std::fs::write(&path, b"not a photo").unwrap();
+    refused(&path, &job.commands, job.start_um, "cannot decode");
+    let e = inspect::inspect(
+        &good,
+        &job.commands,
+        job.start_um,
+        &config(),
+        &inspect::Options {
+            max_pixels: 1000,
+            ..Default::default()
+        },
+    )
+    .err()
+    .expect("over the limit");
+    assert!(e.to_string().contains("--max-pixels"), "{e}");
+}
