@@ -1,0 +1,341 @@
+//! The words of each G-code dialect for a sampled executor run (`gcode_exec::Step`s):
+//! `plain` (`G0`/`G1`/`M42`/`G4`, what any firmware accepts), `reprap` (RepRapFirmware's
+//! `G1 ... P<bitmap>` with the ports mapped by `M670`) and `marlin` (`M400` then
+//! `M42 P<pin> S0|255`). What each assumes of the firmware is on `Dialect`. Only
+//! formatting lives here: where moves and valve changes fall is decided before.
+
+use super::gcode::GcodeStats;
+use super::gcode_exec::Step;
+use dollop::config::Config;
+use std::fmt::Write as _;
+
+/// How valve changes are written.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Dialect {
+    /// `M42 P<inlet> S<0|1>` between the moves, exactly where the executor switched.
+    /// Assumes the firmware runs `M42` in its place in the move sequence (when the head
+    /// gets there) without stopping the head, as firmwares that queue output changes with
+    /// the moves do. A firmware that runs `M42` as soon as it reads the line switches the
+    /// valves early by whatever its planner holds: use `reprap` or `marlin` there.
+    #[default]
+    Plain,
+    /// RepRapFirmware 3: `M670 P<port list> T0` maps bit i of `G1`'s `P` parameter to the
+    /// GPIO port of inlet i (ports 0, 1, .. unless `ports` says otherwise); a valve change
+    /// while moving rides on the next move as `G1 ... P<bitmap>`, set by the firmware as
+    /// that move starts (`T0`: no advance, the executor's run already leads each valve by
+    /// its dead time). A change while the head stands is `M400` (nothing is moving, so it
+    /// costs no time) then `M42 P<port> S<0|1>`. Assumes the ports were created with
+    /// `M950 P<port> C"<pin>"` in the machine's config.
+    RepRap {
+        /// GPIO port of each inlet's valve; inlet i uses port i when shorter.
+        ports: Vec<u32>,
+    },
+    /// Marlin: `M400` then `M42 P<pin> S<0|255>` for every valve change. Marlin runs
+    /// `M42` when it reads the line, ahead of the moves still queued, so `M400` holds it
+    /// until the head arrives: the head comes to a full stop at every valve change while
+    /// moving (the cost shows in `gcode_judge`'s figures). Assumes the pins are free
+    /// (not claimed by a heater, fan or endstop; or add `I` by hand).
+    Marlin {
+        /// Board pin of each inlet's valve; inlet i uses pin i when shorter.
+        pins: Vec<u32>,
+    },
+}
+
+impl Dialect {
+    /// The port (or pin) number of inlet `i`.
+    pub fn port(&self, i: usize) -> u32 {
+        let list = match self {
+            Dialect::Plain => return i as u32,
+            Dialect::RepRap { ports } => ports,
+            Dialect::Marlin { pins } => pins,
+        };
+        list.get(i).copied().unwrap_or(i as u32)
+    }
+    /// Name as the command line spells it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Dialect::Plain => "plain",
+            Dialect::RepRap { .. } => "reprap",
+            Dialect::Marlin { .. } => "marlin",
+        }
+    }
+}
+
+/// Formats a coordinate or feed rate: fixed decimals, trailing zeros dropped.
+fn num(out: &mut String, v: f64, decimals: usize) {
+    let start = out.len();
+    let _ = write!(out, "{:.*}", decimals, v);
+    if out[start..].contains('.') {
+        while out.ends_with('0') {
+            out.pop();
+        }
+        if out.ends_with('.') {
+            out.pop();
+        }
+    }
+    if &out[start..] == "-0" {
+        out.truncate(start);
+        out.push('0');
+    }
+}
+
+struct Writer<'a> {
+    out: String,
+    pos: [f64; 3],
+    f: f64,
+    stats: GcodeStats,
+    dialect: &'a Dialect,
+    inlets: usize,
+    valves: u32,
+    last_opened: Option<u32>,
+    /// Dwell time not yet written (whole milliseconds are written, the rest carried).
+    dwell_carry_s: f64,
+}
+
+impl Writer<'_> {
+    fn move_to(&mut self, to: [f64; 3], v: f64, travel: bool, p_word: Option<u32>) {
+        let r = |v: f64| (v * 1000.0).round() / 1000.0;
+        let to = to.map(r);
+        if to == self.pos && p_word.is_none() {
+            return;
+        }
+        self.flush_dwell();
+        self.out.push_str(if travel { "G0" } else { "G1" });
+        for (a, name) in ["X", "Y", "Z"].iter().enumerate() {
+            if to[a] != self.pos[a] {
+                self.out.push(' ');
+                self.out.push_str(name);
+                num(&mut self.out, to[a], 3);
+            }
+        }
+        let f = (v * 60.0 * 10.0).round() / 10.0;
+        if f != self.f {
+            self.out.push_str(" F");
+            num(&mut self.out, f, 1);
+            self.f = f;
+        }
+        if let Some(bits) = p_word {
+            let _ = write!(self.out, " P{bits}");
+        }
+        self.out.push('\n');
+        self.pos = to;
+        if !travel {
+            self.stats.print_moves += 1;
+        }
+    }
+
+    fn count_switch(&mut self, mask: u32) {
+        let opened = mask & !self.valves;
+        if opened != 0 {
+            let inlet = opened.trailing_zeros();
+            if self.last_opened.is_some_and(|l| l != inlet) {
+                self.stats.switches += 1;
+            }
+            self.last_opened = Some(inlet);
+        }
+    }
+
+    /// `M42` for each changed valve, closes first.
+    fn m42(&mut self, mask: u32) {
+        let (on, off) = match self.dialect {
+            Dialect::Marlin { .. } => (255, 0),
+            _ => (1, 0),
+        };
+        let changed = mask ^ self.valves;
+        for opening in [false, true] {
+            for i in 0..self.inlets {
+                if changed & (1 << i) != 0 && (mask & (1 << i) != 0) == opening {
+                    let port = self.dialect.port(i);
+                    let s = if opening { on } else { off };
+                    let _ = writeln!(self.out, "M42 P{port} S{s}");
+                }
+            }
+        }
+    }
+
+    fn dwell(&mut self, s: f64) {
+        self.dwell_carry_s += s;
+    }
+
+    fn flush_dwell(&mut self) {
+        let ms = (self.dwell_carry_s * 1e3).floor();
+        if ms >= 1.0 {
+            let _ = writeln!(self.out, "G4 P{ms}");
+            self.dwell_carry_s -= ms * 1e-3;
+        }
+    }
+}
+
+/// Writes `steps` (head starting at `start`, mm) in `dialect`.
+pub fn write(
+    steps: &[Step],
+    start: [f64; 3],
+    config: &Config,
+    material_names: &[String],
+    dialect: &Dialect,
+) -> (String, GcodeStats) {
+    let inlets = config.inlets.len();
+    let mut w = Writer {
+        out: String::with_capacity(steps.len() * 24),
+        pos: [f64::NAN; 3],
+        f: f64::NAN,
+        stats: GcodeStats::default(),
+        dialect,
+        inlets,
+        valves: 0,
+        last_opened: None,
+        dwell_carry_s: 0.0,
+    };
+    let _ = writeln!(
+        w.out,
+        "; dollop G-code ({} dialect), sampled from the executor's run: moves of at most 0.25 mm at the speeds the executor used, valves where it switched them, dwells where it stood",
+        dialect.name()
+    );
+    for i in 0..inlets {
+        let name = material_names.get(i).map_or("", |s| s.as_str());
+        let what = match dialect {
+            Dialect::Marlin { .. } => "board pin",
+            _ => "GPIO port",
+        };
+        let _ = writeln!(
+            w.out,
+            "; valve of inlet {i} ({name}) is {what} {}",
+            dialect.port(i)
+        );
+    }
+    w.out.push_str("G21\nG90\n");
+    if let Dialect::RepRap { .. } = dialect {
+        w.out.push_str("M670 P");
+        for i in 0..inlets {
+            if i > 0 {
+                w.out.push(':');
+            }
+            let _ = write!(w.out, "{}", dialect.port(i));
+        }
+        w.out.push_str(" T0\n");
+    }
+    for i in 0..inlets {
+        let port = dialect.port(i);
+        let _ = writeln!(w.out, "M42 P{port} S0");
+    }
+    // To the start: Z first, then X and Y, at the travel speed (Z's top speed for Z).
+    let z_f = config.motion.max_speed_mm_s[2] as f64;
+    let travel_f = config.motion.travel_speed_mm_s as f64;
+    let mut zs = [f64::NAN, f64::NAN, start[2]];
+    w.out.push_str("G0 Z");
+    num(&mut w.out, start[2], 3);
+    w.out.push_str(" F");
+    num(&mut w.out, (z_f * 600.0).round() / 10.0, 1);
+    w.out.push('\n');
+    zs[2] = (start[2] * 1000.0).round() / 1000.0;
+    w.pos = zs;
+    w.f = (z_f * 600.0).round() / 10.0;
+    w.move_to(start, travel_f, true, None);
+
+    let mut pending: Option<u32> = None;
+    for (k, st) in steps.iter().enumerate() {
+        match *st {
+            Step::Move { to, v, travel } => {
+                let p = pending.take();
+                w.move_to(to, v, travel, p);
+            }
+            Step::Valves(mask) => {
+                w.count_switch(mask);
+                let moving_next = matches!(steps.get(k + 1), Some(Step::Move { .. }));
+                match dialect {
+                    Dialect::RepRap { .. } if moving_next => pending = Some(mask),
+                    Dialect::Plain => {
+                        w.flush_dwell();
+                        w.m42(mask);
+                    }
+                    _ => {
+                        w.flush_dwell();
+                        w.out.push_str("M400\n");
+                        w.m42(mask);
+                    }
+                }
+                w.valves = mask;
+            }
+            Step::Dwell(s) => w.dwell(s),
+        }
+    }
+    w.flush_dwell();
+    if w.valves != 0 {
+        w.m42(0);
+    }
+    w.out.push_str("M400\n; end of job\n");
+    w.stats.bytes = w.out.len();
+    (w.out, w.stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config() -> Config {
+        toml::from_str(
+            &std::fs::read_to_string(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../configs/seed-paper-valves.toml"
+            ))
+            .unwrap(),
+        )
+        .unwrap()
+    }
+
+    fn steps() -> Vec<Step> {
+        vec![
+            Step::Valves(1),
+            Step::Dwell(0.0104),
+            Step::Move {
+                to: [1.0, 0.0, 0.6],
+                v: 10.0,
+                travel: false,
+            },
+            Step::Valves(2),
+            Step::Move {
+                to: [1.25, 0.0, 0.6],
+                v: 12.5,
+                travel: false,
+            },
+            Step::Valves(0),
+            Step::Dwell(0.0301),
+            Step::Move {
+                to: [5.0, 5.0, 0.6],
+                v: 80.0,
+                travel: true,
+            },
+        ]
+    }
+
+    #[test]
+    fn each_dialect_writes_its_words() {
+        let c = config();
+        let (plain, st) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &Dialect::Plain);
+        assert_eq!(st.switches, 1);
+        assert_eq!(st.print_moves, 2);
+        assert!(
+            plain.contains("M42 P0 S1\nG4 P10\nG1 X1 F600\nM42 P0 S0\nM42 P1 S1\nG1 X1.25 F750\nM42 P1 S0\nG4 P30\nG0 X5 Y5 F4800\n"),
+            "{plain}"
+        );
+        let rrf = Dialect::RepRap { ports: vec![3, 4] };
+        let (g, _) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &rrf);
+        assert!(g.contains("M670 P3:4 T0\n"), "{g}");
+        // Standing: M400 and M42; moving: the bitmap on the next move.
+        assert!(
+            g.contains("M400\nM42 P3 S1\nG4 P10\nG1 X1 F600\nG1 X1.25 F750 P2\nM400\nM42 P4 S0\n"),
+            "{g}"
+        );
+        let (g, _) = write(
+            &steps(),
+            [0.0, 0.0, 0.6],
+            &c,
+            &[],
+            &Dialect::Marlin { pins: vec![] },
+        );
+        assert!(
+            g.contains("G1 X1 F600\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),
+            "{g}"
+        );
+    }
+}
