@@ -80,7 +80,7 @@ fn explore() {
                 "{} valves, {square} mm squares",
                 if ideal { "ideal" } else { "real" }
             );
-            let g = run_export(&c, &s, Dialect::Plain);
+            let g = run_export(&c, &s, Dialect::default());
             if let Ok(dir) = std::env::var("DUMP") {
                 std::fs::write(format!("{dir}/{}-{square}.gcode", ideal), &g).unwrap();
             }

@@ -9,54 +9,59 @@ use super::gcode_exec::Step;
 use dollop::config::Config;
 use std::fmt::Write as _;
 
-/// How valve changes are written.
+/// How valve changes are written, and the port (or pin) of each inlet's valve.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub enum Dialect {
-    /// `M42 P<inlet> S<0|1>` between the moves, exactly where the executor switched.
+pub struct Dialect {
+    /// The words used.
+    pub kind: Kind,
+    /// Port (`plain`, `reprap`) or board pin (`marlin`) of each inlet's valve, inlet 0
+    /// first; inlet i uses i where the list is shorter.
+    pub ports: Vec<u32>,
+}
+
+/// The dialects.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Kind {
+    /// `M42 P<port> S<0|1>` between the moves, exactly where the executor switched.
     /// Assumes the firmware runs `M42` in its place in the move sequence (when the head
     /// gets there) without stopping the head, as firmwares that queue output changes with
     /// the moves do. A firmware that runs `M42` as soon as it reads the line switches the
-    /// valves early by whatever its planner holds: use `reprap` or `marlin` there.
+    /// valves early by whatever its planner holds: use `RepRap` or `Marlin` there.
     #[default]
     Plain,
     /// RepRapFirmware 3: `M670 P<port list> T0` maps bit i of `G1`'s `P` parameter to the
-    /// GPIO port of inlet i (ports 0, 1, .. unless `ports` says otherwise); a valve change
-    /// while moving rides on the next move as `G1 ... P<bitmap>`, set by the firmware as
-    /// that move starts (`T0`: no advance, the executor's run already leads each valve by
-    /// its dead time). A change while the head stands is `M400` (nothing is moving, so it
-    /// costs no time) then `M42 P<port> S<0|1>`. Assumes the ports were created with
-    /// `M950 P<port> C"<pin>"` in the machine's config.
-    RepRap {
-        /// GPIO port of each inlet's valve; inlet i uses port i when shorter.
-        ports: Vec<u32>,
-    },
+    /// port of inlet i; a valve change while moving rides on the next move as
+    /// `G1 ... P<bitmap>`, which the firmware sets as that move starts (`T0`: no advance,
+    /// the executor's run already leads each valve by its dead time). A change while the
+    /// head stands is `M400` (nothing moves, so it costs no time) then `M42 P<port> S<0|1>`.
+    /// Assumes the ports were created with `M950 P<port> C"<pin>"` in the machine's config.
+    RepRap,
     /// Marlin: `M400` then `M42 P<pin> S<0|255>` for every valve change. Marlin runs
     /// `M42` when it reads the line, ahead of the moves still queued, so `M400` holds it
-    /// until the head arrives: the head comes to a full stop at every valve change while
-    /// moving (the cost shows in `gcode_judge`'s figures). Assumes the pins are free
-    /// (not claimed by a heater, fan or endstop; or add `I` by hand).
-    Marlin {
-        /// Board pin of each inlet's valve; inlet i uses pin i when shorter.
-        pins: Vec<u32>,
-    },
+    /// until the head arrives: the head comes to a full stop at every valve change made
+    /// while moving (what that costs shows in `gcode_judge`'s figures). Assumes the pins
+    /// are free (not claimed by a heater, fan or endstop).
+    Marlin,
 }
 
 impl Dialect {
+    /// A dialect with ports 0, 1, ..
+    pub fn new(kind: Kind) -> Self {
+        Dialect {
+            kind,
+            ports: Vec::new(),
+        }
+    }
     /// The port (or pin) number of inlet `i`.
     pub fn port(&self, i: usize) -> u32 {
-        let list = match self {
-            Dialect::Plain => return i as u32,
-            Dialect::RepRap { ports } => ports,
-            Dialect::Marlin { pins } => pins,
-        };
-        list.get(i).copied().unwrap_or(i as u32)
+        self.ports.get(i).copied().unwrap_or(i as u32)
     }
     /// Name as the command line spells it.
     pub fn name(&self) -> &'static str {
-        match self {
-            Dialect::Plain => "plain",
-            Dialect::RepRap { .. } => "reprap",
-            Dialect::Marlin { .. } => "marlin",
+        match self.kind {
+            Kind::Plain => "plain",
+            Kind::RepRap => "reprap",
+            Kind::Marlin => "marlin",
         }
     }
 }
@@ -137,8 +142,8 @@ impl Writer<'_> {
 
     /// `M42` for each changed valve, closes first.
     fn m42(&mut self, mask: u32) {
-        let (on, off) = match self.dialect {
-            Dialect::Marlin { .. } => (255, 0),
+        let (on, off) = match self.dialect.kind {
+            Kind::Marlin => (255, 0),
             _ => (1, 0),
         };
         let changed = mask ^ self.valves;
@@ -193,8 +198,8 @@ pub fn write(
     );
     for i in 0..inlets {
         let name = material_names.get(i).map_or("", |s| s.as_str());
-        let what = match dialect {
-            Dialect::Marlin { .. } => "board pin",
+        let what = match dialect.kind {
+            Kind::Marlin => "board pin",
             _ => "GPIO port",
         };
         let _ = writeln!(
@@ -204,7 +209,7 @@ pub fn write(
         );
     }
     w.out.push_str("G21\nG90\n");
-    if let Dialect::RepRap { .. } = dialect {
+    if dialect.kind == Kind::RepRap {
         w.out.push_str("M670 P");
         for i in 0..inlets {
             if i > 0 {
@@ -242,9 +247,9 @@ pub fn write(
             Step::Valves(mask) => {
                 w.count_switch(mask);
                 let moving_next = matches!(steps.get(k + 1), Some(Step::Move { .. }));
-                match dialect {
-                    Dialect::RepRap { .. } if moving_next => pending = Some(mask),
-                    Dialect::Plain => {
+                match dialect.kind {
+                    Kind::RepRap if moving_next => pending = Some(mask),
+                    Kind::Plain => {
                         w.flush_dwell();
                         w.m42(mask);
                     }
@@ -311,14 +316,17 @@ mod tests {
     #[test]
     fn each_dialect_writes_its_words() {
         let c = config();
-        let (plain, st) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &Dialect::Plain);
+        let (plain, st) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &Dialect::default());
         assert_eq!(st.switches, 1);
         assert_eq!(st.print_moves, 2);
         assert!(
             plain.contains("M42 P0 S1\nG4 P10\nG1 X1 F600\nM42 P0 S0\nM42 P1 S1\nG1 X1.25 F750\nM42 P1 S0\nG4 P30\nG0 X5 Y5 F4800\n"),
             "{plain}"
         );
-        let rrf = Dialect::RepRap { ports: vec![3, 4] };
+        let rrf = Dialect {
+            kind: Kind::RepRap,
+            ports: vec![3, 4],
+        };
         let (g, _) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &rrf);
         assert!(g.contains("M670 P3:4 T0\n"), "{g}");
         // Standing: M400 and M42; moving: the bitmap on the next move.
@@ -331,7 +339,7 @@ mod tests {
             [0.0, 0.0, 0.6],
             &c,
             &[],
-            &Dialect::Marlin { pins: vec![] },
+            &Dialect::new(Kind::Marlin),
         );
         assert!(
             g.contains("G1 X1 F600\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),

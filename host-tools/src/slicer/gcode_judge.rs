@@ -224,7 +224,7 @@ pub const SECTION_MM: f64 = 0.2;
 pub struct Verdict {
     /// Design boundaries.
     pub boundaries: usize,
-    /// Material changes that landed on a bead.
+    /// Material changes that landed.
     pub landed: usize,
     /// |landed - design| along the path, mm: 95th percentile, largest and mean (each
     /// design boundary against the nearest landed change to the same material).
@@ -244,6 +244,8 @@ pub struct Verdict {
     pub windows: usize,
     /// Junctions inside a run of moves where the head had to stop.
     pub full_stops: usize,
+    /// Material changes that landed off the beads (during travel).
+    pub changes_off_path: usize,
     /// Volume landed off the beads (during travel), mm^3.
     pub off_path_mm3: f64,
     /// Time of the print, s.
@@ -592,13 +594,13 @@ pub fn judge(
         windows.clear();
         *cur = (0.0, 0.0);
     };
-    // Head state at a time: (path length of beads, position, block is a G1 or stand in a bead).
-    let head = |bi: &mut usize, t: f64| -> (f64, [f64; 3], bool) {
+    // The head at a time: (path length of the beads so far, position).
+    let head = |bi: &mut usize, t: f64| -> (f64, [f64; 3]) {
         while *bi + 1 < tl.blocks.len() && tl.blocks[*bi].end() <= t {
             *bi += 1;
         }
         let Some(b) = tl.blocks.get(*bi) else {
-            return (0.0, setup.start, false);
+            return (0.0, setup.start);
         };
         let d = b.d_at(t);
         let p = [
@@ -606,10 +608,10 @@ pub fn judge(
             b.from[1] + b.dir[1] * d,
             b.from[2] + b.dir[2] * d,
         ];
-        (b.s0 + if b.travel { 0.0 } else { d }, p, b.travel)
+        (b.s0 + if b.travel { 0.0 } else { d }, p)
     };
     let mut t = 0.0f64;
-    let (mut s_prev, _, _) = head(&mut bi, 0.0);
+    let (mut s_prev, _) = head(&mut bi, 0.0);
     let mut step = StepLanded::default();
     while t < t_stop {
         let t1 = (t + h).min(t_stop);
@@ -631,7 +633,7 @@ pub fn judge(
             .extend(l.changes.iter().map(|&(x, m)| (step.volume + x, m)));
         step.volume += l.volume;
         let blk_before = bi;
-        let (s1, p1, travel) = head(&mut bi, t1);
+        let (s1, p1) = head(&mut bi, t1);
         // A G1 block starts a bead; a G0 block ends it.
         if t1 <= tl.end {
             for k in blk_before..=bi {
@@ -658,9 +660,12 @@ pub fn judge(
             } else {
                 s1 + (standing_vol + f * step.volume) / area
             };
-            if in_bead {
-                landed_at.push((s, m));
+            // Off the beads (during travel) a change counts where the path is: at the end
+            // of the last bead, which is where the next one starts along it.
+            if !in_bead {
+                v.changes_off_path += 1;
             }
+            landed_at.push((s, m));
         }
         if in_bead {
             if ds > 0.0 {
@@ -675,7 +680,6 @@ pub fn judge(
                 cur = (0.0, 0.0);
             }
         } else {
-            let _ = travel;
             v.off_path_mm3 += step.volume;
         }
         s_prev = s1;
