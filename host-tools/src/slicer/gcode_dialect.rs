@@ -93,24 +93,40 @@ struct Writer<'a> {
     inlets: usize,
     valves: u32,
     last_opened: Option<u32>,
-    /// Dwell time not yet written (whole milliseconds are written, the rest carried).
+    /// Dwell time not yet written, s (whole milliseconds are written, the rest goes on the
+    /// next print move's time).
     dwell_carry_s: f64,
 }
 
 impl Writer<'_> {
     fn move_to(&mut self, to: [f64; 3], v: f64, travel: bool, p_word: Option<u32>) {
-        let r = |v: f64| (v * 1000.0).round() / 1000.0;
+        // 0.1 um: short pieces keep their direction (see `gcode_ramps`).
+        let r = |v: f64| (v * 10_000.0).round() / 10_000.0;
         let to = to.map(r);
         if to == self.pos && p_word.is_none() {
             return;
         }
         self.flush_dwell();
+        // What the whole-millisecond dwell left out (or added) goes on this move's time,
+        // so the head stays on the executor's clock.
+        let mut v = v;
+        if !travel {
+            let len = ((to[0] - self.pos[0]).powi(2)
+                + (to[1] - self.pos[1]).powi(2)
+                + (to[2] - self.pos[2]).powi(2))
+            .sqrt();
+            if len > 0.0 && v > 0.0 {
+                let t = len / v;
+                v = len / (t + self.dwell_carry_s).max(0.5 * t);
+            }
+        }
+        self.dwell_carry_s = 0.0;
         self.out.push_str(if travel { "G0" } else { "G1" });
         for (a, name) in ["X", "Y", "Z"].iter().enumerate() {
             if to[a] != self.pos[a] {
                 self.out.push(' ');
                 self.out.push_str(name);
-                num(&mut self.out, to[a], 3);
+                num(&mut self.out, to[a], 4);
             }
         }
         let f = (v * 60.0 * 10.0).round() / 10.0;
@@ -162,8 +178,10 @@ impl Writer<'_> {
         self.dwell_carry_s += s;
     }
 
+    /// Writes the dwell to the nearest millisecond (firmwares differ on fractions); the
+    /// remainder, within half a millisecond either way, stays in `dwell_carry_s`.
     fn flush_dwell(&mut self) {
-        let ms = (self.dwell_carry_s * 1e3).floor();
+        let ms = (self.dwell_carry_s * 1e3).round();
         if ms >= 1.0 {
             let _ = writeln!(self.out, "G4 P{ms}");
             self.dwell_carry_s -= ms * 1e-3;
@@ -228,11 +246,11 @@ pub fn write(
     let travel_f = config.motion.travel_speed_mm_s as f64;
     let mut zs = [f64::NAN, f64::NAN, start[2]];
     w.out.push_str("G0 Z");
-    num(&mut w.out, start[2], 3);
+    num(&mut w.out, start[2], 4);
     w.out.push_str(" F");
     num(&mut w.out, (z_f * 600.0).round() / 10.0, 1);
     w.out.push('\n');
-    zs[2] = (start[2] * 1000.0).round() / 1000.0;
+    zs[2] = (start[2] * 10_000.0).round() / 10_000.0;
     w.pos = zs;
     w.f = (z_f * 600.0).round() / 10.0;
     w.move_to(start, travel_f, true, None);
@@ -319,8 +337,9 @@ mod tests {
         let (plain, st) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &Dialect::default());
         assert_eq!(st.switches, 1);
         assert_eq!(st.print_moves, 2);
+        // The 0.4 ms the dwell leaves out goes on the next move: 1 mm in 0.1004 s.
         assert!(
-            plain.contains("M42 P0 S1\nG4 P10\nG1 X1 F600\nM42 P0 S0\nM42 P1 S1\nG1 X1.25 F750\nM42 P1 S0\nG4 P30\nG0 X5 Y5 F4800\n"),
+            plain.contains("M42 P0 S1\nG4 P10\nG1 X1 F597.6\nM42 P0 S0\nM42 P1 S1\nG1 X1.25 F750\nM42 P1 S0\nG4 P30\nG0 X5 Y5 F4800\n"),
             "{plain}"
         );
         let rrf = Dialect {
@@ -331,7 +350,9 @@ mod tests {
         assert!(g.contains("M670 P3:4 T0\n"), "{g}");
         // Standing: M400 and M42; moving: the bitmap on the next move.
         assert!(
-            g.contains("M400\nM42 P3 S1\nG4 P10\nG1 X1 F600\nG1 X1.25 F750 P2\nM400\nM42 P4 S0\n"),
+            g.contains(
+                "M400\nM42 P3 S1\nG4 P10\nG1 X1 F597.6\nG1 X1.25 F750 P2\nM400\nM42 P4 S0\n"
+            ),
             "{g}"
         );
         let (g, _) = write(
@@ -342,7 +363,7 @@ mod tests {
             &Dialect::new(Kind::Marlin),
         );
         assert!(
-            g.contains("G1 X1 F600\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),
+            g.contains("G1 X1 F597.6\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),
             "{g}"
         );
     }

@@ -350,7 +350,7 @@ mod tests {
             assert!(len <= 0.127, "{len}");
             // Each move's feed is its length over the executor's time: chords are a
             // little shorter than the arc.
-            assert!(v > 9.9 && v <= 10.0 + 1e-9, "{v}");
+            assert!(v > 9.9 && v <= 10.01, "{v}");
             from = to;
             moves += 1;
         }

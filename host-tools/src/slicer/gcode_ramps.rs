@@ -11,6 +11,11 @@ use super::gcode_exec::Step;
 /// Shortest speed ramp worth re-centring, mm.
 const JUMP_MIN_MM: f64 = 0.004;
 
+/// Shortest piece a move is cut into, mm: coordinates are written to 0.1 um, so a piece
+/// this long points within 0.05 rad of its true direction, which a junction-deviation
+/// planner takes at speed.
+const MIN_PIECE_MM: f64 = 0.002;
+
 /// Shortest run-up or run-out worth writing, mm.
 const RAMP_MIN_MM: f64 = 0.002;
 
@@ -140,7 +145,7 @@ pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Ste
             let mut cuts: Vec<f64> = faster
                 .iter()
                 .flat_map(|r| [r.0, r.1])
-                .filter(|&c| c > s0 + 1e-4 && c < s1 - 1e-4)
+                .filter(|&c| c > s0 + MIN_PIECE_MM && c < s1 - MIN_PIECE_MM)
                 .collect();
             cuts.push(s1);
             cuts.sort_by(f64::total_cmp);
