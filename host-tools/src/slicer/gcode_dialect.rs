@@ -145,8 +145,9 @@ impl Writer<'_> {
         }
     }
 
-    fn count_switch(&mut self, mask: u32) {
-        let opened = mask & !self.valves;
+    /// Counts a switch when `opened` (the valves just opened) names another inlet than the
+    /// last one opened.
+    fn count_switch(&mut self, opened: u32) {
         if opened != 0 {
             let inlet = opened.trailing_zeros();
             if self.last_opened.is_some_and(|l| l != inlet) {
@@ -172,6 +173,7 @@ impl Writer<'_> {
                 }
             }
         }
+        self.valves = mask;
     }
 
     fn dwell(&mut self, s: f64) {
@@ -255,32 +257,65 @@ pub fn write(
     w.f = (z_f * 600.0).round() / 10.0;
     w.move_to(start, travel_f, true, None);
 
+    // RepRapFirmware: a valve change waiting for the next move's `P` word.
     let mut pending: Option<u32> = None;
-    for (k, st) in steps.iter().enumerate() {
+    let mut counted = 0u32;
+    let mut exact = start;
+    let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
+    for st in steps {
         match *st {
             Step::Move { to, v, travel } => {
+                let len = ((to[0] - exact[0]).powi(2)
+                    + (to[1] - exact[1]).powi(2)
+                    + (to[2] - exact[2]).powi(2))
+                .sqrt();
+                exact = to;
+                if to.map(round) == w.pos {
+                    // Shorter than the written precision: the executor's time there is
+                    // standing time.
+                    if !travel && v > 0.0 {
+                        w.dwell(len / v);
+                    }
+                    continue;
+                }
                 let p = pending.take();
                 w.move_to(to, v, travel, p);
+                if let Some(mask) = p {
+                    w.valves = mask;
+                }
             }
             Step::Valves(mask) => {
-                w.count_switch(mask);
-                let moving_next = matches!(steps.get(k + 1), Some(Step::Move { .. }));
+                let opened = mask & !counted;
+                counted = mask;
+                w.count_switch(opened);
                 match dialect.kind {
-                    Kind::RepRap if moving_next => pending = Some(mask),
+                    Kind::RepRap => pending = Some(mask),
                     Kind::Plain => {
                         w.flush_dwell();
                         w.m42(mask);
                     }
-                    _ => {
+                    Kind::Marlin => {
                         w.flush_dwell();
                         w.out.push_str("M400\n");
                         w.m42(mask);
                     }
                 }
-                w.valves = mask;
             }
-            Step::Dwell(s) => w.dwell(s),
+            Step::Dwell(s) => {
+                // The head stands: a waiting change is made now, as it stands.
+                if let Some(mask) = pending.take() {
+                    w.flush_dwell();
+                    w.out.push_str("M400\n");
+                    w.m42(mask);
+                }
+                w.dwell(s);
+            }
         }
+    }
+    if let Some(mask) = pending.take() {
+        w.flush_dwell();
+        w.out.push_str("M400\n");
+        w.m42(mask);
     }
     w.flush_dwell();
     if w.valves != 0 {
