@@ -118,11 +118,11 @@ fn run_gcode_meets_the_goals_with_real_valves() {
 
 #[test]
 fn run_gcode_with_ideal_valves_lands_boundaries_and_keeps_the_section_near_s() {
-    // With ideal valves the flow jumps at a switch (10 to 21 mm/s on this machine) faster
-    // than 2000 mm/s^2 lets the head follow; the export centres the firmware's ramp on the
-    // jump, which leaves about 5 % over the 0.2 mm around it (1.044..1.065 measured on
-    // these and the bench's designs): the section is held to 7 % here, the boundaries to
-    // the goal.
+    // With ideal valves the flow jumps at a switch (the head from 10 to 21 mm/s on this
+    // machine) faster than 2000 mm/s^2 lets a firmware follow; the export centres the
+    // firmware's ramp on the jump, which leaves about 5 % over the 0.2 mm around it
+    // (1.044..1.063 measured on these and the bench's designs): the section is held to
+    // 7 % here, the boundaries to the goal.
     let c = config(true);
     for (label, s) in designs(&c) {
         let g = run_export(&c, &s, Kind::Plain);
