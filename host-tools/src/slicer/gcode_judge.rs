@@ -432,8 +432,7 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
                 let dir = d.map(|c| c / len);
                 let mut vmax = v.max(1e-3);
                 let mut a = f64::INFINITY;
-                for ax in 0..3 {
-                    let c = dir[ax].abs();
+                for (ax, c) in dir.iter().map(|c| c.abs()).enumerate() {
                     if c > 1e-12 {
                         vmax = vmax.min(fw.max_speed[ax] / c);
                         a = a.min(fw.max_accel[ax] / c);

@@ -21,13 +21,11 @@ const RAMP_MIN_MM: f64 = 0.002;
 
 /// Acceleration a firmware allows along unit direction `u`, mm/s^2.
 fn accel_along(u: [f64; 3], accel: [f64; 3]) -> f64 {
-    let mut a = f64::INFINITY;
-    for ax in 0..3 {
-        if u[ax].abs() > 1e-12 {
-            a = a.min(accel[ax] / u[ax].abs());
-        }
-    }
-    a
+    u.iter()
+        .zip(accel)
+        .filter(|(c, _)| c.abs() > 1e-12)
+        .map(|(c, a)| a / c.abs())
+        .fold(f64::INFINITY, f64::min)
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
