@@ -77,13 +77,6 @@ fn judge(label: &str, c: &Config, s: &Sliced, text: &str) -> Verdict {
     let init = s.header.initial_material;
     let design = gcode_judge::design_boundaries(&s.commands, s.header.start_um, init);
     let v = gcode_judge::judge(text, &setup, &design).unwrap();
-    if let Ok(dir) = std::env::var("DOLLOP_DUMP_GCODE") {
-        let name: String = label
-            .chars()
-            .map(|c| if c.is_alphanumeric() { c } else { '_' })
-            .collect();
-        std::fs::write(format!("{dir}/{name}.gcode"), text).unwrap();
-    }
     eprintln!(
         "{label}: boundaries {} designed / {} landed ({} off the beads), p95 {:.4} mm, worst {:.4} mm (mean {:.4}); section {:.4}..{:.4} over {} windows (worst at {:.2?}); {} full stops; {:.1} s; {} bytes",
         v.boundaries, v.landed, v.changes_off_path, v.p95_mm, v.worst_mm, v.mean_mm, v.section_range.0, v.section_range.1, v.windows, v.worst_section_at, v.full_stops, v.time_s, text.len()
