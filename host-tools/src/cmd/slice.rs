@@ -3,6 +3,8 @@
 //! short summary. All the work is the library's; this file maps options and prints.
 
 use crate::slicer::gcode::{self, Style};
+use crate::slicer::gcode_dialect::{Dialect, Kind};
+use crate::slicer::gcode_exec::{self, RunExport};
 use crate::slicer::image::{parse_colour, Classify, ImageOptions, Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
 use crate::slicer::{self, output, Limits, PathOptions, SliceError, SliceOptions};
@@ -26,12 +28,26 @@ pub struct Args {
     /// Job file to write [default: the first design's name with .dlp, in the current directory].
     #[arg(long, value_name = "JOB.dlp")]
     pub out: Option<PathBuf>,
-    /// Also write RepRapFirmware G-code for controllers without volume keying.
+    /// Also write G-code for controllers without volume keying.
     #[arg(long, value_name = "OUT.gcode")]
     pub gcode: Option<PathBuf>,
-    /// G-code speed profile: `fine` (ours) or `coarse` (the seed paper's, for comparison).
-    #[arg(long, value_name = "STYLE", default_value = "fine", value_parser = ["fine", "coarse"])]
+    /// G-code: `run` (sampled from the executor's run of the job: moves of at most 0.25 mm
+    /// at its speeds, valves where it switched them, so dead time, pressure rise/decay and
+    /// the speed law carry over), or the older feed-rate profiles `fine` (advance distance
+    /// plus dead time) and `coarse` (the seed paper's), for comparison.
+    #[arg(long, value_name = "STYLE", default_value = "run", value_parser = ["run", "fine", "coarse"])]
     pub gcode_style: String,
+    /// How `--gcode-style run` writes valve changes: `plain` (`M42 P<port> S0|1` between
+    /// moves; the firmware must run M42 in its place in the move sequence), `reprap`
+    /// (RepRapFirmware 3: `G1 ... P<bitmap>` mapped by `M670`, `M400` + `M42` while
+    /// standing) or `marlin` (`M400` then `M42 P<pin> S0|255`: the head stops at each
+    /// valve change).
+    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "marlin"])]
+    pub gcode_dialect: String,
+    /// Port (plain, reprap) or board pin (marlin) of each inlet's valve, inlet 0 first
+    /// [default: 0,1,..].
+    #[arg(long, value_name = "P0,P1,..")]
+    pub gcode_ports: Option<String>,
     /// Also write a PNG of the toolpath coloured by material, travel moves dashed.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
@@ -190,6 +206,40 @@ impl Args {
     }
 }
 
+/// The G-code dialect and valve ports from `--gcode-dialect` and `--gcode-ports`.
+fn gcode_dialect(a: &Args, inlets: usize) -> Result<Dialect, SliceError> {
+    let kind = match a.gcode_dialect.as_str() {
+        "reprap" => Kind::RepRap,
+        "marlin" => Kind::Marlin,
+        _ => Kind::Plain,
+    };
+    let mut ports = Vec::new();
+    if let Some(list) = &a.gcode_ports {
+        let bad = || {
+            SliceError::Option(format!(
+                "--gcode-ports {list:?} must be up to {inlets} different port numbers (0 to 65535) separated by commas, inlet 0 first"
+            ))
+        };
+        for t in list.split(',') {
+            let p: u32 = t.trim().parse().map_err(|_| bad())?;
+            if p > 65_535 || ports.contains(&p) {
+                return Err(bad());
+            }
+            ports.push(p);
+        }
+        if ports.len() > inlets {
+            return Err(bad());
+        }
+        // Ports left to their defaults must not collide with the ones given.
+        for i in ports.len()..inlets {
+            if ports.contains(&(i as u32)) {
+                return Err(bad());
+            }
+        }
+    }
+    Ok(Dialect { kind, ports })
+}
+
 /// The default job path: the first design's stem with `.dlp`, in the current directory.
 fn default_out(design: &Path) -> PathBuf {
     let stem = design
@@ -220,8 +270,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .collect();
             let style = match a.gcode_style.as_str() {
                 "coarse" => Style::Coarse { segments: 4 },
-                _ => Style::default(),
+                "fine" => Style::default(),
+                _ => {
+                    let opt = RunExport {
+                        dialect: gcode_dialect(&a, config.inlets.len())?,
+                        ..RunExport::default()
+                    };
+                    return gcode_exec::export(
+                        &config,
+                        &sliced.commands,
+                        sliced.header.start_um,
+                        sliced.header.initial_material,
+                        &names,
+                        &opt,
+                    );
+                }
             };
+            if a.gcode_dialect != "plain" || a.gcode_ports.is_some() {
+                return Err(SliceError::Option(format!(
+                    "--gcode-dialect and --gcode-ports apply to --gcode-style run, not {}",
+                    a.gcode_style
+                )));
+            }
             gcode::export(
                 &sliced.commands,
                 sliced.header.start_um,

@@ -1,12 +1,17 @@
 //! The slicer: turns designs (an image, or one STL per material) into the core's compact
 //! job, plus G-code for other controllers and preview pictures. Entry points for the
 //! `dollop slice` command and for `demo`/`simulate`: [`load_config`], [`slice_files`],
-//! [`job_file::write_job`]/[`job_file::read_job`], [`gcode::export`] and
+//! [`job_file::write_job`]/[`job_file::read_job`], [`gcode_exec::export`] (and the older
+//! [`gcode::export`]) and
 //! [`preview::render`]. Running jobs is the `dollop-sim` crate's business.
 
 pub mod design;
 pub mod error;
 pub mod gcode;
+pub mod gcode_dialect;
+pub mod gcode_exec;
+pub mod gcode_judge;
+pub mod gcode_ramps;
 pub mod gcode_sim;
 pub mod image;
 pub mod job_file;

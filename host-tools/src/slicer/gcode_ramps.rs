@@ -1,0 +1,354 @@
+//! Fits a sampled executor run (`gcode_exec::Step`s) to a firmware's acceleration limit
+//! where the executor changes speed at once (a valve whose flow starts, stops or changes
+//! at once, as ideal valves do): speed jumps inside a bead are re-centred so that the
+//! firmware's ramp is half before and half after the change, and beads that start or end
+//! at speed get a short run-up or run-out off the bead. Where the executor's speed changes
+//! gradually (real valves), nothing changes. Stops at reshaping moves: writing them is
+//! `gcode_dialect`'s.
+
+use super::gcode_exec::Step;
+
+/// Shortest speed ramp worth re-centring, mm.
+const JUMP_MIN_MM: f64 = 0.004;
+
+/// Shortest piece a move is cut into, mm: coordinates are written to 0.1 um, so a piece
+/// this long points within 0.05 rad of its true direction, which a junction-deviation
+/// planner takes at speed.
+const MIN_PIECE_MM: f64 = 0.002;
+
+/// Shortest run-up or run-out worth writing, mm.
+const RAMP_MIN_MM: f64 = 0.002;
+
+/// Acceleration a firmware allows along unit direction `u`, mm/s^2.
+fn accel_along(u: [f64; 3], accel: [f64; 3]) -> f64 {
+    u.iter()
+        .zip(accel)
+        .filter(|(c, _)| c.abs() > 1e-12)
+        .map(|(c, a)| a / c.abs())
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm(d: [f64; 3]) -> f64 {
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+fn lerp(a: [f64; 3], b: [f64; 3], f: f64) -> [f64; 3] {
+    [
+        a[0] + (b[0] - a[0]) * f,
+        a[1] + (b[1] - a[1]) * f,
+        a[2] + (b[2] - a[2]) * f,
+    ]
+}
+
+/// The head's position before each step, and after the last.
+fn positions(steps: &[Step], start: [f64; 3]) -> Vec<[f64; 3]> {
+    let mut at = Vec::with_capacity(steps.len() + 1);
+    let mut p = start;
+    for st in steps {
+        at.push(p);
+        if let Step::Move { to, .. } = st {
+            p = *to;
+        }
+    }
+    at.push(p);
+    at
+}
+
+/// Distance a speed change from `lo` to `hi` must be moved (earlier when speeding up,
+/// later when slowing down) for a firmware ramping at `a` over `|hi^2 - lo^2| / 2a` to
+/// spend the time the executor spends over the same path, mm.
+fn centring_shift(lo: f64, hi: f64, a: f64) -> f64 {
+    let span = (hi * hi - lo * lo) / (2.0 * a);
+    (((hi - lo) / a - span / hi) / (1.0 / lo - 1.0 / hi)).max(0.0)
+}
+
+/// Where the executor's speed jumps between two print moves (only valve changes between),
+/// a firmware ramps over `|v2^2 - v1^2| / 2a` after the junction (speeding up) or before
+/// it (slowing down), and the bead is thick or thin over the whole ramp. Moving the speed
+/// change by `centring_shift` centres the ramp on the jump: thin on one side, thick on
+/// the other, each much less, and the head on time after it.
+pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Step> {
+    let at = positions(steps, start);
+    // Chains of print moves with only valve changes between; along each, its path length.
+    let mut out = Vec::with_capacity(steps.len() + 16);
+    let mut k = 0;
+    while k < steps.len() {
+        if !matches!(steps[k], Step::Move { travel: false, .. }) {
+            out.push(steps[k]);
+            k += 1;
+            continue;
+        }
+        // The chain from k: moves and the valve changes between them.
+        let mut end = k;
+        let mut j = k;
+        while j < steps.len() {
+            match steps[j] {
+                Step::Move { travel: false, .. } => {
+                    end = j;
+                    j += 1;
+                }
+                Step::Valves(_) => j += 1,
+                _ => break,
+            }
+        }
+        let chain = &steps[k..=end];
+        // (index in chain, start s, end s, feed, unit direction) of each move.
+        let mut moves = Vec::new();
+        let mut s = 0.0;
+        for (i, st) in chain.iter().enumerate() {
+            if let Step::Move { to, v, .. } = *st {
+                let len = norm(sub(to, at[k + i]));
+                moves.push((i, s, s + len, v, len));
+                s += len;
+            }
+        }
+        // Ranges of the chain that run at a higher feed: (from s, to s, feed).
+        let mut faster: Vec<(f64, f64, f64)> = Vec::new();
+        for w in moves.windows(2) {
+            let (ia, _, sj, v1, la) = w[0];
+            let (ib, _, _, v2, lb) = w[1];
+            if la <= 0.0 || lb <= 0.0 || v1 <= 0.0 || v2 <= 0.0 {
+                continue;
+            }
+            let m = if v2 > v1 { ib } else { ia };
+            let Step::Move { to, .. } = chain[m] else {
+                continue;
+            };
+            let u = sub(to, at[k + m]).map(|c| c / norm(sub(to, at[k + m])));
+            let a = accel_along(u, accel);
+            let (lo, hi) = (v1.min(v2), v1.max(v2));
+            if (hi * hi - lo * lo) / (2.0 * a) < JUMP_MIN_MM {
+                continue;
+            }
+            let shift = centring_shift(lo, hi, a);
+            if v2 > v1 {
+                faster.push((sj - shift, sj, v2));
+            } else {
+                faster.push((sj, sj + shift, v1));
+            }
+        }
+        for (i, st) in chain.iter().enumerate() {
+            let Step::Move { to, v, .. } = *st else {
+                out.push(*st);
+                continue;
+            };
+            let &(_, s0, s1, _, len) = moves.iter().find(|m| m.0 == i).expect("a move");
+            if len <= 0.0 {
+                continue;
+            }
+            let mut cuts: Vec<f64> = faster
+                .iter()
+                .flat_map(|r| [r.0, r.1])
+                .filter(|&c| c > s0 + MIN_PIECE_MM && c < s1 - MIN_PIECE_MM)
+                .collect();
+            cuts.push(s1);
+            cuts.sort_by(f64::total_cmp);
+            let from = at[k + i];
+            let mut a = s0;
+            for c in cuts {
+                if c <= a {
+                    continue;
+                }
+                let mid = 0.5 * (a + c);
+                let feed = faster
+                    .iter()
+                    .filter(|r| r.0 <= mid && mid <= r.1)
+                    .map(|r| r.2)
+                    .fold(v, f64::max);
+                let end_pt = if c >= s1 {
+                    to
+                } else {
+                    lerp(from, to, (c - s0) / len)
+                };
+                out.push(Step::Move {
+                    to: end_pt,
+                    v: feed,
+                    travel: false,
+                });
+                a = c;
+            }
+        }
+        k = end + 1;
+    }
+    out
+}
+
+/// Where the executor starts a bead at speed (a valve whose flow starts at once), a
+/// firmware needs `v^2 / 2a` to get to that speed: the head runs up to the bead's start
+/// from that far back along it, with the valve changes of the last `v / a` seconds before
+/// the start made as it arrives (at most that much late); where a bead ends at speed it
+/// runs out as far past the end, the valve changes of the first `v / a` seconds after
+/// made at the end. Both are `G0` at the bead's speed and take their time from the
+/// executor's standing there where it stood.
+pub fn run_ups(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Step> {
+    let n = steps.len();
+    let at = positions(steps, start);
+    let moves: Vec<usize> = (0..n)
+        .filter(|&k| matches!(steps[k], Step::Move { .. }))
+        .collect();
+    let is_print = |k: usize| matches!(steps[k], Step::Move { travel: false, .. });
+    let rests_between =
+        |a: usize, b: usize| steps[a + 1..b].iter().any(|s| matches!(s, Step::Dwell(_)));
+    // Run-ups: (first step of the block moved behind it, move, back point, feed, time);
+    // run-outs: (move, last step of the block moved before it, past point, feed, time).
+    let mut ups: Vec<(usize, usize, [f64; 3], f64, f64)> = Vec::new();
+    let mut outs: Vec<(usize, usize, [f64; 3], f64, f64)> = Vec::new();
+    for (j, &k) in moves.iter().enumerate() {
+        if !is_print(k) {
+            continue;
+        }
+        let Step::Move { to, v, .. } = steps[k] else {
+            continue;
+        };
+        let from = at[k];
+        let len = norm(sub(to, from));
+        if len <= 0.0 {
+            continue;
+        }
+        let u = sub(to, from).map(|c| c / len);
+        let a = accel_along(u, accel);
+        let dr = v * v / (2.0 * a);
+        let t_ramp = v / a;
+        if dr < RAMP_MIN_MM {
+            continue;
+        }
+        let from_rest = match j.checked_sub(1).map(|i| moves[i]) {
+            None => true,
+            Some(prev) => !is_print(prev) || rests_between(prev, k),
+        };
+        if from_rest {
+            let mut first = k;
+            let mut stood = 0.0;
+            while first > 0 {
+                match steps[first - 1] {
+                    Step::Valves(_) => first -= 1,
+                    Step::Dwell(d) if stood + d <= t_ramp => {
+                        stood += d;
+                        first -= 1;
+                    }
+                    _ => break,
+                }
+            }
+            // Leading dwells stay before the run-up.
+            while first < k && matches!(steps[first], Step::Dwell(_)) {
+                if let Step::Dwell(d) = steps[first] {
+                    stood -= d;
+                }
+                first += 1;
+            }
+            let back = lerp(from, to, -dr / len);
+            ups.push((first, k, back, v, (t_ramp - stood).max(0.0)));
+        }
+        let next = moves.get(j + 1).copied();
+        let to_rest = match next {
+            None => true,
+            Some(nx) => !is_print(nx) || rests_between(k, nx),
+        };
+        if to_rest {
+            let mut last = k;
+            let mut stood = 0.0;
+            while last + 1 < n {
+                match steps[last + 1] {
+                    Step::Valves(_) => last += 1,
+                    Step::Dwell(d) if stood + d <= t_ramp => {
+                        stood += d;
+                        last += 1;
+                    }
+                    _ => break,
+                }
+            }
+            while last > k && matches!(steps[last], Step::Dwell(_)) {
+                if let Step::Dwell(d) = steps[last] {
+                    stood -= d;
+                }
+                last -= 1;
+            }
+            let past = lerp(to, from, -dr / len);
+            outs.push((k, last, past, v, (t_ramp - stood).max(0.0)));
+        }
+    }
+    let mut out: Vec<Step> = Vec::with_capacity(n + 3 * (ups.len() + outs.len()));
+    let (mut ui, mut oi) = (0, 0);
+    // Time a run-out still owes the dwells after it.
+    let mut owed = 0.0f64;
+    // Dwells before this step belong to a run-up's block (absorbed in it).
+    let mut absorb_dwells_until = 0usize;
+    // A run-out's block (after its move, through its last step): already written.
+    let mut out_block = (0usize, 0usize);
+    for k in 0..n {
+        if ui < ups.len() && ups[ui].0 == k {
+            let (_, m, back, v, t) = ups[ui];
+            let bead_start = at[m];
+            // Take the time from the dwells just before, latest first.
+            let mut need = t;
+            let mut i = out.len();
+            while need > 0.0 && i > 0 && matches!(out[i - 1], Step::Dwell(_)) {
+                if let Step::Dwell(d) = &mut out[i - 1] {
+                    let take = d.min(need);
+                    *d -= take;
+                    need -= take;
+                }
+                i -= 1;
+            }
+            // A travel that ends at the bead's start (dwells after it aside) goes to the
+            // run-up's start directly.
+            let last_move = out.iter_mut().rev().find(|s| !matches!(s, Step::Dwell(_)));
+            match last_move {
+                Some(Step::Move {
+                    to, travel: true, ..
+                }) if *to == bead_start => *to = back,
+                _ => out.push(Step::Move {
+                    to: back,
+                    v,
+                    travel: true,
+                }),
+            }
+            out.push(Step::Move {
+                to: bead_start,
+                v,
+                travel: true,
+            });
+            absorb_dwells_until = m;
+            ui += 1;
+        }
+        let written = k > out_block.0 && k <= out_block.1;
+        if !written {
+            match steps[k] {
+                Step::Dwell(_) if k < absorb_dwells_until => {}
+                Step::Dwell(d) if owed > 0.0 => {
+                    let take = d.min(owed);
+                    owed -= take;
+                    out.push(Step::Dwell(d - take));
+                }
+                Step::Move { .. } => {
+                    owed = 0.0;
+                    out.push(steps[k]);
+                }
+                st => out.push(st),
+            }
+        }
+        if oi < outs.len() && outs[oi].0 == k {
+            let (_, last, past, v, t) = outs[oi];
+            // The block's valve changes go before the run-out; its dwells are absorbed.
+            for st in &steps[k + 1..=last] {
+                if let Step::Valves(_) = st {
+                    out.push(*st);
+                }
+            }
+            out_block = (k, last);
+            out.push(Step::Move {
+                to: past,
+                v,
+                travel: true,
+            });
+            owed = t;
+            oi += 1;
+        }
+    }
+    out.retain(|s| !matches!(s, Step::Dwell(d) if *d <= 0.0));
+    out
+}

@@ -1,0 +1,99 @@
+//! `dollop slice --gcode` options from the command line: the default is the export from the
+//! executor's run in the plain dialect, `--gcode-dialect` and `--gcode-ports` pick the
+//! words and ports, the older styles stay selectable, and bad combinations are refused
+//! with one line naming the option, leaving nothing written.
+
+use std::path::Path;
+use std::process::Command;
+
+fn manifest(p: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(p)
+        .to_str()
+        .unwrap()
+        .to_string()
+}
+
+fn slice(dir: &Path, extra: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .current_dir(dir)
+        .args([
+            "slice",
+            &manifest("designs/logo.png"),
+            "--config",
+            &manifest("../configs/seed-paper-valves.toml"),
+            "--width-mm",
+            "12",
+            "--out",
+            "logo.dlp",
+            "--gcode",
+            "logo.gcode",
+        ])
+        .args(extra)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn each_dialect_is_written_and_the_default_is_plain_from_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (code, err) = slice(d, &[]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(g.starts_with("; dollop G-code (plain dialect), sampled from the executor's run"));
+    assert!(g.contains("M42 P1 S1") && g.contains("\nG0 ") && !g.contains("M670"));
+    let (code, err) = slice(d, &["--gcode-dialect", "reprap", "--gcode-ports", "5,6"]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(
+        g.contains("M670 P5:6 T0") && g.contains("M42 P5 S1"),
+        "{g:.2000}"
+    );
+    // Switches while moving ride on the move: bit 1 (inlet 1, port 6).
+    assert!(g
+        .lines()
+        .any(|l| l.starts_with("G1 ") && l.ends_with(" P2")));
+    let (code, err) = slice(d, &["--gcode-dialect", "marlin", "--gcode-ports", "40"]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(g.contains("M400\nM42 P40 S255") && g.contains("M42 P1 S255"));
+    let (code, err) = slice(d, &["--gcode-style", "coarse"]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(g.contains("coarse (seed paper) style"));
+}
+
+#[test]
+fn bad_gcode_options_are_refused_in_one_line() {
+    for (args, says) in [
+        (&["--gcode-ports", "1,x"][..], "--gcode-ports"),
+        (&["--gcode-ports", "3,3"][..], "--gcode-ports"),
+        (&["--gcode-ports", "1,2,3"][..], "--gcode-ports"),
+        // Inlet 1 keeps port 1 by default: taken by inlet 0.
+        (&["--gcode-ports", "1"][..], "--gcode-ports"),
+        (&["--gcode-ports", "99999"][..], "--gcode-ports"),
+        (
+            &["--gcode-style", "fine", "--gcode-dialect", "reprap"][..],
+            "--gcode-style run",
+        ),
+        (&["--gcode-dialect", "klipper"][..], "--gcode-dialect"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let (code, err) = slice(dir.path(), args);
+        assert_ne!(code, 0, "{args:?}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        if code == 1 {
+            assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        }
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "{args:?} left files"
+        );
+    }
+}
