@@ -4,7 +4,9 @@
 //! plant, and prints the report. Everything it needs is compiled into the binary.
 
 use super::simulate::{self, Heatmap};
-use crate::slicer::{self, gcode, image::ImageOptions, job_file, output, preview, SliceOptions};
+use crate::slicer::{
+    self, gcode_exec, image::ImageOptions, job_file, output, preview, SliceOptions,
+};
 use anyhow::Context;
 use dollop_sim::Job;
 use std::path::{Path, PathBuf};
@@ -88,19 +90,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let sliced = slicer::slice_files(&files, &config, &opts)?;
     let job_path = dir.join(format!("{name}.dlp"));
-    let machine = slicer::validate(&machine_path, &config)?;
+    slicer::validate(&machine_path, &config)?;
     let names: Vec<String> = config
         .inlets
         .iter()
         .map(|i| i.material.to_string())
         .collect();
-    let (gcode_text, _) = gcode::export(
+    // The G-code `dollop slice --gcode` writes by default: from the executor's own run.
+    let (gcode_text, _) = gcode_exec::export(
+        &config,
         &sliced.commands,
         sliced.header.start_um,
         sliced.header.initial_material,
-        &machine,
         &names,
-        gcode::Style::Fine { max_sub_mm: 0.25 },
+        &gcode_exec::RunExport::default(),
     )?;
     let gcode_path = dir.join(format!("{name}.gcode"));
     let preview_path = dir.join(format!("{name}-toolpath.png"));
