@@ -12,6 +12,7 @@ use crate::flow_model::predict::{Goal, Outcome, Prediction};
 use crate::flow_model::FlowModel;
 use crate::motion::{fillet, Fillet, Trapezoid, V2};
 use crate::outputs::{Axis, Outputs};
+use crate::ramp::{to_units, Frame, Ramp};
 use crate::real::Real;
 use crate::step_gen::StepGen;
 use crate::vol::Vol;
@@ -167,7 +168,8 @@ impl core::fmt::Display for LoadError {
 pub struct Report<R> {
     /// Run state.
     pub state: RunState,
-    /// Planned head position, mm.
+    /// Head position the outputs were commanded to, mm (with speed ramps, the mean of the
+    /// ramp window; the fields below marked "plan" run half a window ahead of it).
     pub position: [R; 3],
     /// Valves commanded open, bit per inlet.
     pub valves: u32,
@@ -379,6 +381,10 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     plunger_vol: [Vol; N],
     plunger_steps: [i64; N],
     plunger_per_cycle: [Vol; N],
+    /// The cycles planned but not yet shown by the outputs, when the head ramps through
+    /// flow steps (`Machine::ramp_cycles` > 1).
+    ramp: Ramp<N>,
+    ramped: bool,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -425,6 +431,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             plunger_vol: [Vol::ZERO; N],
             plunger_steps: [0; N],
             plunger_per_cycle: [Vol::ZERO; N],
+            ramp: Ramp::new(),
+            ramped: false,
         }
     }
 
@@ -468,6 +476,44 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.last_q = R::ZERO;
         self.plunger_vol = [Vol::ZERO; N];
         self.plunger_steps = [0; N];
+        self.ramped = self.machine.ramp_cycles > 1;
+        self.hold_ramp();
+    }
+
+    /// The head at rest where the plan has it, valves as commanded: the whole ramp window
+    /// that frame (after a job begins, a config loads, or the outputs went safe).
+    fn hold_ramp(&mut self) {
+        if self.ramped {
+            let f = self.frame();
+            self.ramp.reset(self.machine.ramp_cycles, f);
+        }
+    }
+
+    /// Syringe plunger targets, steps. Step counts fit i32 (2^31 steps is a thousand
+    /// litres); beyond, the saturated target becomes a step-rate fault.
+    fn plunger_targets(&self) -> [i32; N] {
+        let mut t = [0i32; N];
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            if let Some(sy) = inlet.syringe {
+                t[i] = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i32();
+            }
+        }
+        t
+    }
+
+    /// This cycle as planned, for the ramp window.
+    fn frame(&self) -> Frame<N> {
+        Frame {
+            pos: to_units(self.head_pos),
+            valves: self.model.commanded(),
+            state: self.model_state(),
+            index: self.last_index,
+            dv: self.last_dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32,
+            landing: self.model.channel().landing(),
+            feeding: self.model.feeding(),
+            slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
+            plunger: self.plunger_targets(),
+        }
     }
 
     /// Forgets the plan and the run's progress: what `configure` and `begin` both reset.
@@ -499,8 +545,18 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub fn model(&self) -> &FlowModel<R, N> {
         &self.model
     }
-    /// Current run state.
+    /// Current run state, as the outputs show it: with speed ramps, the plan runs half a
+    /// ramp window ahead, and the job is done when the head has stopped.
     pub fn state(&self) -> RunState {
+        match self.phase {
+            Phase::Faulted(_) | Phase::Aborted => self.model_state(),
+            _ if self.ramped => self.ramp.state(),
+            _ => self.model_state(),
+        }
+    }
+
+    /// Run state of the plan.
+    fn model_state(&self) -> RunState {
         match self.phase {
             Phase::Idle => RunState::Idle,
             Phase::Print { .. } => RunState::Printing,
@@ -551,6 +607,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.begun = true;
         self.head_pos = pos;
         self.entry_material = initial_material;
+        self.hold_ramp();
         Ok(())
     }
 
@@ -662,6 +719,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Stops now: valves closed, motion stopped, drivers off.
     pub fn abort(&mut self, out: &mut impl Outputs) {
         self.safe_outputs(out);
+        self.stop_ramp();
         if !matches!(self.phase, Phase::Faulted(_)) {
             self.phase = Phase::Aborted;
         }
@@ -674,6 +732,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// The one path to the safe state: all valves closed, motion stopped, drivers off.
     fn safe_state(&mut self, fault: Fault, out: &mut impl Outputs) {
         self.safe_outputs(out);
+        self.stop_ramp();
         self.phase = Phase::Faulted(fault);
         self.pending_fault = None;
     }
@@ -687,6 +746,15 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.want = None;
         out.drivers(false);
         self.drivers_on = false;
+    }
+
+    /// Motion stops where the outputs are, not where the plan ran ahead to. Once per
+    /// fault or abort: refilling the window is 24 KiB of stores.
+    fn stop_ramp(&mut self) {
+        if self.ramped {
+            self.head_pos = self.ramp.position();
+            self.hold_ramp();
+        }
     }
 
     /// One control cycle at time `now_us`. One call per period; a call less than half a
@@ -740,7 +808,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         self.last_dv = total_dv;
         // Steps for where the head now is.
-        if let Err(e) = self.steps.move_over(self.head_pos, cycles as u32, out) {
+        let target = if self.ramped {
+            self.ramp.position()
+        } else {
+            self.head_pos
+        };
+        if let Err(e) = self.steps.move_over(target, cycles as u32, out) {
             let f = Fault::StepRate {
                 axis: e.axis,
                 steps: e.steps,
@@ -752,11 +825,16 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // Syringe plungers (E axes).
         if self.machine.syringes {
             let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+            let plunger = if self.ramped {
+                self.ramp.current().plunger
+            } else {
+                self.plunger_targets()
+            };
             for (i, inlet) in self.machine.inlets.iter().enumerate() {
-                let Some(sy) = inlet.syringe else { continue };
-                // Step counts fit i32 (2^31 steps is a thousand litres); beyond, the
-                // saturated target becomes a step-rate fault.
-                let target = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i32() as i64;
+                if inlet.syringe.is_none() {
+                    continue;
+                }
+                let target = plunger[i] as i64;
                 let d = target - self.plunger_steps[i];
                 if d.unsigned_abs() > max {
                     let f = Fault::StepRate {
@@ -774,7 +852,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         // Valves as decided.
-        let mask = self.model.commanded();
+        let mask = if self.ramped {
+            self.ramp.current().valves
+        } else {
+            self.model.commanded()
+        };
         if mask != self.valves_out {
             for i in 0..self.machine.inlet_count() {
                 let bit = 1u32 << i;
@@ -816,6 +898,22 @@ impl<R: Real, const N: usize> Executor<R, N> {
         } else {
             R::ZERO
         };
+        if self.ramped {
+            let f = self.ramp.current();
+            return Report {
+                state: self.state(),
+                position: self.ramp.position(),
+                valves: self.valves_out,
+                feeding: f.feeding,
+                landing: f.landing,
+                q: self.last_q,
+                dv: Vol(f.dv as i64),
+                speed,
+                plan_volume: self.head,
+                command_index: f.index,
+                slugs: f.slugs,
+            };
+        }
         Report {
             state: self.state(),
             position: self.head_pos,
@@ -923,6 +1021,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         if matches!(self.phase, Phase::Print { .. }) {
             self.decide_valves()?;
+        }
+        if self.ramped {
+            // The frame's dv is this cycle's alone (`last_dv` sums a catch-up's cycles).
+            let mut f = self.frame();
+            f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+            self.ramp.push(f);
         }
         Ok(dv)
     }
