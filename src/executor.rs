@@ -489,13 +489,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
     }
 
-    /// Syringe plunger targets, steps. Step counts fit i32 (2^31 steps is a thousand
-    /// litres); beyond, the saturated target becomes a step-rate fault.
+    /// Syringe plunger targets, steps.
     fn plunger_targets(&self) -> [i32; N] {
         let mut t = [0i32; N];
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             if let Some(sy) = inlet.syringe {
-                t[i] = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i32();
+                t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
             }
         }
         t
@@ -807,56 +806,106 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         self.last_dv = total_dv;
+        if self.ramped {
+            return self.ramped_outputs(cycles, total_dv, out);
+        }
         // Steps for where the head now is.
-        let target = if self.ramped {
-            self.ramp.position()
-        } else {
-            self.head_pos
-        };
-        if let Err(e) = self.steps.move_over(target, cycles as u32, out) {
-            let f = Fault::StepRate {
-                axis: e.axis,
-                steps: e.steps,
-                max: e.max,
-            };
+        if let Err(f) = self.move_head(self.head_pos, cycles, out) {
             self.safe_state(f, out);
             return Err(f);
         }
-        // Syringe plungers (E axes).
-        if self.machine.syringes {
-            let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
-            let plunger = if self.ramped {
-                self.ramp.current().plunger
+        if let Err(f) = self.move_plungers(false, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        self.set_valves(self.model.commanded(), out);
+        Ok(self.plan_report())
+    }
+
+    /// The outputs of a tick with speed ramps: the cycles just planned enter the window
+    /// and the outputs show it. Out of line, so that machines without ramps run the tick
+    /// they ran before ramps existed, plus one branch. A late tick's catch-up cycles enter
+    /// as copies of the last (the window smooths the jump).
+    #[inline(never)]
+    fn ramped_outputs(
+        &mut self,
+        cycles: u64,
+        total_dv: Vol,
+        out: &mut impl Outputs,
+    ) -> Result<Report<R>, Fault> {
+        let dv = Vol(total_dv.0 / cycles.max(1) as i64);
+        for _ in 0..cycles {
+            self.push_frame(dv);
+        }
+        let target = self.ramp.position();
+        if let Err(f) = self.move_head(target, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        if let Err(f) = self.move_plungers(true, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        self.set_valves(self.ramp.current().valves, out);
+        Ok(self.ramped_report())
+    }
+
+    /// Steps for head position `target` over `cycles`.
+    #[inline(always)]
+    fn move_head(
+        &mut self,
+        target: [R; 3],
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        self.steps
+            .move_over(target, cycles as u32, out)
+            .map_err(|e| Fault::StepRate {
+                axis: e.axis,
+                steps: e.steps,
+                max: e.max,
+            })
+    }
+
+    /// Syringe plungers (E axes): to the ramp window's current frame (`ramped`) or to the
+    /// volume displaced so far.
+    #[inline(always)]
+    fn move_plungers(
+        &mut self,
+        ramped: bool,
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        if !self.machine.syringes {
+            return Ok(());
+        }
+        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            let Some(sy) = inlet.syringe else { continue };
+            let target = if ramped {
+                self.ramp.current().plunger[i] as i64
             } else {
-                self.plunger_targets()
+                plunger_steps(self.plunger_vol[i], sy.steps_per_mm3) as i64
             };
-            for (i, inlet) in self.machine.inlets.iter().enumerate() {
-                if inlet.syringe.is_none() {
-                    continue;
-                }
-                let target = plunger[i] as i64;
-                let d = target - self.plunger_steps[i];
-                if d.unsigned_abs() > max {
-                    let f = Fault::StepRate {
-                        axis: Axis::E(i as u8),
-                        steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
-                        max: max as u32,
-                    };
-                    self.safe_state(f, out);
-                    return Err(f);
-                }
-                if d != 0 {
-                    out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
-                    self.plunger_steps[i] = target;
-                }
+            let d = target - self.plunger_steps[i];
+            if d.unsigned_abs() > max {
+                return Err(Fault::StepRate {
+                    axis: Axis::E(i as u8),
+                    steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
+                    max: max as u32,
+                });
+            }
+            if d != 0 {
+                out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
+                self.plunger_steps[i] = target;
             }
         }
-        // Valves as decided.
-        let mask = if self.ramped {
-            self.ramp.current().valves
-        } else {
-            self.model.commanded()
-        };
+        Ok(())
+    }
+
+    /// Valves as decided.
+    #[inline(always)]
+    fn set_valves(&mut self, mask: u32, out: &mut impl Outputs) {
         if mask != self.valves_out {
             for i in 0..self.machine.inlet_count() {
                 let bit = 1u32 << i;
@@ -866,7 +915,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
             self.valves_out = mask;
         }
-        Ok(self.report())
     }
 
     /// Volume that left the nozzle off the print path so far (between beads).
@@ -893,40 +941,69 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     fn report(&self) -> Report<R> {
-        let speed = if matches!(self.phase, Phase::Print { .. }) {
-            self.last_dv.mm3::<R>() * self.inv_s * self.model.inv_dt()
-        } else {
-            R::ZERO
-        };
         if self.ramped {
-            let f = self.ramp.current();
-            return Report {
-                state: self.state(),
-                position: self.ramp.position(),
-                valves: self.valves_out,
-                feeding: f.feeding,
-                landing: f.landing,
-                q: self.last_q,
-                dv: Vol(f.dv as i64),
-                speed,
-                plan_volume: self.head,
-                command_index: f.index,
-                slugs: f.slugs,
-            };
+            self.ramped_report()
+        } else {
+            self.plan_report()
         }
+    }
+
+    /// The report of a machine without ramps: the plan is what the outputs show.
+    fn plan_report(&self) -> Report<R> {
         Report {
-            state: self.state(),
+            state: self.model_state(),
             position: self.head_pos,
             valves: self.valves_out,
             feeding: self.model.feeding(),
             landing: self.model.channel().landing(),
             q: self.last_q,
             dv: self.last_dv,
-            speed,
+            speed: self.speed(),
             plan_volume: self.head,
             command_index: self.last_index,
             slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
         }
+    }
+
+    /// Head speed along the print path (plan), mm/s: the last cycle's mean flow over the
+    /// bead section (a late tick's catch-up included, whose summed volume would overstate
+    /// it; and without converting the volume again).
+    #[inline(always)]
+    fn speed(&self) -> R {
+        if matches!(self.phase, Phase::Print { .. }) {
+            self.last_q * self.inv_s
+        } else {
+            R::ZERO
+        }
+    }
+
+    /// The report with speed ramps: what the outputs show, half a window behind the plan.
+    /// Out of line, so that machines without ramps do not carry it in their tick.
+    #[inline(never)]
+    fn ramped_report(&self) -> Report<R> {
+        let f = self.ramp.current();
+        Report {
+            state: self.state(),
+            position: self.ramp.position(),
+            valves: self.valves_out,
+            feeding: f.feeding,
+            landing: f.landing,
+            q: self.last_q,
+            dv: Vol(f.dv as i64),
+            speed: self.speed(),
+            plan_volume: self.head,
+            command_index: f.index,
+            slugs: f.slugs,
+        }
+    }
+
+    /// The cycle just planned enters the ramp window; `dv` is its volume alone
+    /// (`last_dv` sums a catch-up's cycles). Out of line, as `ramped_report`.
+    #[inline(never)]
+    fn push_frame(&mut self, dv: Vol) {
+        let mut f = self.frame();
+        f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.ramp.push(f);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
@@ -1021,12 +1098,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         if matches!(self.phase, Phase::Print { .. }) {
             self.decide_valves()?;
-        }
-        if self.ramped {
-            // The frame's dv is this cycle's alone (`last_dv` sums a catch-up's cycles).
-            let mut f = self.frame();
-            f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-            self.ramp.push(f);
         }
         Ok(dv)
     }
@@ -1426,6 +1497,13 @@ fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
         s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
     }
     (s / machine.dt()).round_i64().max(1) as u64
+}
+
+/// A plunger's step target for the volume it displaced. Step counts fit i32 (2^31 steps
+/// is a thousand litres); beyond, the saturated target becomes a step-rate fault.
+#[inline]
+fn plunger_steps<R: Real>(v: Vol, steps_per_mm3: R) -> i32 {
+    (v.mm3::<R>() * steps_per_mm3).round_i32()
 }
 
 /// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).
