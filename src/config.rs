@@ -1209,6 +1209,40 @@ mod tests {
         assert_eq!(e.problem, Problem::TooManyInlets { got: 2, max: 1 });
     }
 
+    /// The seed printhead's instantaneous valves step the head speed by 22.48 mm/s (paste
+    /// B's supply through a channel full of paste A): ramps sized to it at 1/sqrt(2) of
+    /// the limit; pressure rise and decay remove them; a limit whose ramp outlasts the
+    /// window is refused, naming the field.
+    #[test]
+    fn flow_steps_size_the_speed_ramps() {
+        let m = seed().validate::<f64, 2>().unwrap();
+        assert!(
+            (m.flow_step - 10.0 * 3.17 / 1.41).abs() < 1e-3,
+            "{}",
+            m.flow_step
+        );
+        let t = m.flow_step / (2000.0 * RAMP_SHARE);
+        assert_eq!(m.ramp_cycles, (libm::ceil(t / 1e-4) as u32) | 1);
+        assert!((m.corner_radius - m.v_flow_max.powi(2) / (2000.0 * RAMP_SHARE)).abs() < 1e-9);
+        let mut c = seed();
+        for i in c.inlets.iter_mut() {
+            i.pressure_rise_ms = 30.0;
+            i.pressure_decay_ms = 20.0;
+        }
+        let m = c.validate::<f64, 2>().unwrap();
+        assert_eq!((m.flow_step, m.ramp_cycles), (0.0, 1));
+        assert!(
+            m.flow_accel > 0.0 && m.flow_accel < 2000.0,
+            "{}",
+            m.flow_accel
+        );
+        let mut c = seed();
+        c.motion.max_accel_mm_s2 = [500.0, 500.0, 200.0];
+        let e = c.validate::<f64, 2>().unwrap_err();
+        assert_eq!(e.field.key, "max_accel_mm_s2");
+        assert!(matches!(e.problem, Problem::RampTooLong { .. }), "{e:?}");
+    }
+
     #[test]
     fn a_pressure_that_outruns_the_cap_is_refused() {
         let mut c = seed();
