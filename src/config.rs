@@ -282,6 +282,16 @@ pub enum Problem {
     AutoPressure,
     /// Some inlets are syringes and some pneumatic; a machine is one or the other.
     MixedDrives,
+    /// Ramping the head through the flow's largest step at this acceleration takes longer
+    /// than the executor's ramp window holds.
+    RampTooLong {
+        /// The step of head speed, mm/s.
+        step: f32,
+        /// Time the ramp needs, ms.
+        needed_ms: f32,
+        /// Longest ramp the executor holds at this control rate, ms.
+        max_ms: f32,
+    },
 }
 
 /// A config value that cannot print, naming the field and the reason.
@@ -345,6 +355,17 @@ impl fmt::Display for ConfigError {
             Problem::MixedDrives => write!(
                 f,
                 "mixes syringe and pneumatic inlets; make every inlet a syringe or none"
+            ),
+            Problem::RampTooLong {
+                step,
+                needed_ms,
+                max_ms,
+            } => write!(
+                f,
+                "the flow can change the head speed by {step} mm/s at once; a ramp within \
+                 this acceleration takes {needed_ms} ms, longer than the {max_ms} ms the \
+                 executor holds: raise it, or give the valves pressure_rise_ms and \
+                 pressure_decay_ms"
             ),
         }
     }
@@ -445,8 +466,18 @@ pub struct Machine<R, const N: usize> {
     /// Fastest the flow can drive the head, mm/s (highest supply through the least
     /// resistive channel content).
     pub v_flow_max: R,
-    /// Corner radius: the one the XY acceleration limit allows at `v_flow_max`, mm.
+    /// Corner radius: the one the XY acceleration limit allows at `v_flow_max` (its
+    /// `RAMP_SHARE` when the head ramps through flow steps), mm.
     pub corner_radius: R,
+    /// Largest change of head speed the flow makes faster than the X/Y acceleration limit
+    /// follows (a valve whose pressure switches at once), mm/s; 0 when it never does.
+    pub flow_step: R,
+    /// Largest head acceleration the flow asks for where it ramps within the limit
+    /// (pressure rise and decay, syringe lag), mm/s^2.
+    pub flow_accel: R,
+    /// Length of the head's speed ramps, control cycles: odd, 1 when the head follows the
+    /// flow as it is (see `crate::ramp`).
+    pub ramp_cycles: u32,
     /// Flow counted as stopped, mm^3/s.
     pub q_stop: R,
     /// Every inlet is a stepper-driven syringe (else every inlet is pneumatic).
@@ -475,6 +506,9 @@ impl<R: Real, const N: usize> Machine<R, N> {
         period_us: 0,
         v_flow_max: R::ZERO,
         corner_radius: R::ZERO,
+        flow_step: R::ZERO,
+        flow_accel: R::ZERO,
+        ramp_cycles: 1,
         q_stop: R::ZERO,
         syringes: false,
     };
@@ -566,6 +600,108 @@ fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
         return 0.0;
     }
     libm::pow((per_vol - law.b) / law.a, 1.0 / law.n)
+}
+
+/// Share of the X/Y acceleration limit a speed ramp may use when the head ramps through
+/// flow steps; corners get the same share. A ramp on a fillet adds its tangential
+/// acceleration to the centripetal one at right angles, so on any one axis the two sum to
+/// at most `sqrt(2)` times the share: the limit.
+pub const RAMP_SHARE: f64 = core::f64::consts::FRAC_1_SQRT_2;
+
+/// Bead section tolerance over `SECTION_WINDOW_MM` of bead that `section_accel` is for.
+pub const SECTION_TOLERANCE: f64 = 0.02;
+/// Length of bead over which the section is held to `SECTION_TOLERANCE`, mm.
+pub const SECTION_WINDOW_MM: f64 = 0.2;
+
+/// Ramp acceleration that keeps the section within `SECTION_TOLERANCE` over
+/// `SECTION_WINDOW_MM` through a step of head speed `step` (mm/s): a ramp centred on the
+/// step lays the paste `step^2 / (8 a)` mm away from where the flow put it, on each side.
+pub fn section_accel(step: f64) -> f64 {
+    step * step / (8.0 * SECTION_TOLERANCE * SECTION_WINDOW_MM)
+}
+
+/// Pneumatic inlets: the largest head speed step faster than `a_xy` (valve opening,
+/// closing or switching with a channel full of any one material: a mix lies between) and
+/// the largest acceleration the flow asks for where it ramps within `a_xy`.
+fn valve_steps<R: Real, const N: usize>(
+    inlets: &[Inlet<R>],
+    laws: &heapless::Vec<FlowLaw<f64>, N>,
+    supplies: &heapless::Vec<f64, N>,
+    v_channel: f64,
+    s: f64,
+    a_xy: f64,
+) -> (f64, f64) {
+    let mut step = 0.0f64;
+    let mut accel = 0.0f64;
+    let mut event = |dv: f64, tau: f64, v_moving: f64| {
+        // A first-order pressure change moves the flow at most `v / tau` (its start).
+        let a = if tau > 0.0 {
+            v_moving / tau
+        } else {
+            f64::INFINITY
+        };
+        if a > a_xy {
+            step = step.max(dv);
+        } else {
+            accel = accel.max(a);
+        }
+    };
+    for law in laws.iter() {
+        for (j, &pj) in supplies.iter().enumerate() {
+            let vj = flow_full(law, pj, v_channel) / s;
+            let (rise_j, decay_j) = (inlets[j].rise_s.to_f64(), inlets[j].decay_s.to_f64());
+            event(vj, rise_j, vj);
+            event(vj, decay_j, vj);
+            for (i, &pi) in supplies.iter().enumerate() {
+                if i == j {
+                    continue;
+                }
+                let vi = flow_full(law, pi, v_channel) / s;
+                let decay_i = inlets[i].decay_s.to_f64();
+                // Both lines move during a switch; the faster bounds the junction.
+                let (tau, v) = if vj / rise_j.max(1e-30) > vi / decay_i.max(1e-30) {
+                    (rise_j, vj)
+                } else {
+                    (decay_i, vi)
+                };
+                event((vj - vi).abs(), tau, v);
+            }
+        }
+    }
+    (step, accel)
+}
+
+/// Syringes: a plunger start, stop or switch moves the flow through the Weibull lag
+/// `1 - exp(-k t^n)`, whose steepest slope is `k` at the start for `n = 1`, unbounded for
+/// `n < 1`, and `n k t^(n-1) exp(-(n-1)/n)` at `k t^n = (n-1)/n` above.
+fn syringe_steps<R: Real>(
+    inlets: &[Inlet<R>],
+    print_speed: f64,
+    v_flow_max: f64,
+    a_xy: f64,
+) -> (f64, f64) {
+    let mut step = 0.0f64;
+    let mut accel = 0.0f64;
+    for sy in inlets.iter().filter_map(|i| i.syringe) {
+        let (k, n) = (sy.lag_k.to_f64(), sy.lag_n.to_f64());
+        let slope = if n < 1.0 {
+            f64::INFINITY
+        } else if n == 1.0 {
+            k
+        } else {
+            let t = libm::pow((n - 1.0) / (n * k), 1.0 / n);
+            n * k * libm::pow(t, n - 1.0) * libm::exp(-(n - 1.0) / n)
+        };
+        // A switch's two responses move in opposite directions; each one at most
+        // `slope` of the print speed per second.
+        let a = print_speed * slope;
+        if a > a_xy {
+            step = step.max(v_flow_max);
+        } else {
+            accel = accel.max(a);
+        }
+    }
+    (step, accel)
 }
 
 impl Config {
@@ -913,7 +1049,30 @@ impl Config {
             ));
         }
         let a_xy = m.max_accel_mm_s2[0].min(m.max_accel_mm_s2[1]) as f64;
-        let corner_radius = v_flow_max * v_flow_max / a_xy;
+        let (flow_step, flow_accel) = if self.inlets.iter().all(|x| x.syringe.is_some()) {
+            syringe_steps(&inlets, print_speed, v_flow_max, a_xy)
+        } else {
+            valve_steps(&inlets, &laws, &supplies, v_channel, s, a_xy)
+        };
+        let dt = period_us as f64 * 1e-6;
+        let (corner_share, ramp_cycles) = if flow_step > 0.0 {
+            let t = flow_step / (a_xy * RAMP_SHARE);
+            let cycles = libm::ceil(t / dt) as u64 | 1;
+            if cycles > crate::ramp::RAMP_CAPACITY as u64 - 1 {
+                return Err(mc.err(
+                    "max_accel_mm_s2",
+                    Problem::RampTooLong {
+                        step: flow_step as f32,
+                        needed_ms: (t * 1e3) as f32,
+                        max_ms: ((crate::ramp::RAMP_CAPACITY - 1) as f64 * dt * 1e3) as f32,
+                    },
+                ));
+            }
+            (RAMP_SHARE, cycles as u32)
+        } else {
+            (1.0, 1)
+        };
+        let corner_radius = v_flow_max * v_flow_max / (a_xy * corner_share);
         Ok(Machine {
             d_mm: R::of(d),
             v_channel: Vol::from_mm3(v_channel),
@@ -933,6 +1092,9 @@ impl Config {
             period_us,
             v_flow_max: R::of(v_flow_max),
             corner_radius: R::of(corner_radius),
+            flow_step: R::of(flow_step),
+            flow_accel: R::of(flow_accel),
+            ramp_cycles,
             q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
             syringes: self.inlets.iter().all(|x| x.syringe.is_some()),
         })
@@ -1045,6 +1207,40 @@ mod tests {
         let c = seed();
         let e = c.validate::<f32, 1>().unwrap_err();
         assert_eq!(e.problem, Problem::TooManyInlets { got: 2, max: 1 });
+    }
+
+    /// The seed printhead's instantaneous valves step the head speed by 22.48 mm/s (paste
+    /// B's supply through a channel full of paste A): ramps sized to it at 1/sqrt(2) of
+    /// the limit; pressure rise and decay remove them; a limit whose ramp outlasts the
+    /// window is refused, naming the field.
+    #[test]
+    fn flow_steps_size_the_speed_ramps() {
+        let m = seed().validate::<f64, 2>().unwrap();
+        assert!(
+            (m.flow_step - 10.0 * 3.17 / 1.41).abs() < 1e-3,
+            "{}",
+            m.flow_step
+        );
+        let t = m.flow_step / (2000.0 * RAMP_SHARE);
+        assert_eq!(m.ramp_cycles, (libm::ceil(t / 1e-4) as u32) | 1);
+        assert!((m.corner_radius - m.v_flow_max.powi(2) / (2000.0 * RAMP_SHARE)).abs() < 1e-9);
+        let mut c = seed();
+        for i in c.inlets.iter_mut() {
+            i.pressure_rise_ms = 30.0;
+            i.pressure_decay_ms = 20.0;
+        }
+        let m = c.validate::<f64, 2>().unwrap();
+        assert_eq!((m.flow_step, m.ramp_cycles), (0.0, 1));
+        assert!(
+            m.flow_accel > 0.0 && m.flow_accel < 2000.0,
+            "{}",
+            m.flow_accel
+        );
+        let mut c = seed();
+        c.motion.max_accel_mm_s2 = [500.0, 500.0, 200.0];
+        let e = c.validate::<f64, 2>().unwrap_err();
+        assert_eq!(e.field.key, "max_accel_mm_s2");
+        assert!(matches!(e.problem, Problem::RampTooLong { .. }), "{e:?}");
     }
 
     #[test]

@@ -12,6 +12,7 @@ use crate::flow_model::predict::{Goal, Outcome, Prediction};
 use crate::flow_model::FlowModel;
 use crate::motion::{fillet, Fillet, Trapezoid, V2};
 use crate::outputs::{Axis, Outputs};
+use crate::ramp::{to_units, Frame, Ramp};
 use crate::real::Real;
 use crate::step_gen::StepGen;
 use crate::vol::Vol;
@@ -167,7 +168,8 @@ impl core::fmt::Display for LoadError {
 pub struct Report<R> {
     /// Run state.
     pub state: RunState,
-    /// Planned head position, mm.
+    /// Head position the outputs were commanded to, mm (with speed ramps, the mean of the
+    /// ramp window; the fields below marked "plan" run half a window ahead of it).
     pub position: [R; 3],
     /// Valves commanded open, bit per inlet.
     pub valves: u32,
@@ -379,6 +381,10 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     plunger_vol: [Vol; N],
     plunger_steps: [i64; N],
     plunger_per_cycle: [Vol; N],
+    /// The cycles planned but not yet shown by the outputs, when the head ramps through
+    /// flow steps (`Machine::ramp_cycles` > 1).
+    ramp: Ramp<N>,
+    ramped: bool,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -425,6 +431,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             plunger_vol: [Vol::ZERO; N],
             plunger_steps: [0; N],
             plunger_per_cycle: [Vol::ZERO; N],
+            ramp: Ramp::new(),
+            ramped: false,
         }
     }
 
@@ -468,6 +476,43 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.last_q = R::ZERO;
         self.plunger_vol = [Vol::ZERO; N];
         self.plunger_steps = [0; N];
+        self.ramped = self.machine.ramp_cycles > 1;
+        self.hold_ramp();
+    }
+
+    /// The head at rest where the plan has it, valves as commanded: the whole ramp window
+    /// that frame (after a job begins, a config loads, or the outputs went safe).
+    fn hold_ramp(&mut self) {
+        if self.ramped {
+            let f = self.frame();
+            self.ramp.reset(self.machine.ramp_cycles, f);
+        }
+    }
+
+    /// Syringe plunger targets, steps.
+    fn plunger_targets(&self) -> [i32; N] {
+        let mut t = [0i32; N];
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            if let Some(sy) = inlet.syringe {
+                t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
+            }
+        }
+        t
+    }
+
+    /// This cycle as planned, for the ramp window.
+    fn frame(&self) -> Frame<N> {
+        Frame {
+            pos: to_units(self.head_pos),
+            valves: self.model.commanded(),
+            state: self.model_state(),
+            index: self.last_index,
+            dv: self.last_dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32,
+            landing: self.model.channel().landing(),
+            feeding: self.model.feeding(),
+            slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
+            plunger: self.plunger_targets(),
+        }
     }
 
     /// Forgets the plan and the run's progress: what `configure` and `begin` both reset.
@@ -499,8 +544,18 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub fn model(&self) -> &FlowModel<R, N> {
         &self.model
     }
-    /// Current run state.
+    /// Current run state, as the outputs show it: with speed ramps, the plan runs half a
+    /// ramp window ahead, and the job is done when the head has stopped.
     pub fn state(&self) -> RunState {
+        match self.phase {
+            Phase::Faulted(_) | Phase::Aborted => self.model_state(),
+            _ if self.ramped => self.ramp.state(),
+            _ => self.model_state(),
+        }
+    }
+
+    /// Run state of the plan.
+    fn model_state(&self) -> RunState {
         match self.phase {
             Phase::Idle => RunState::Idle,
             Phase::Print { .. } => RunState::Printing,
@@ -551,6 +606,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.begun = true;
         self.head_pos = pos;
         self.entry_material = initial_material;
+        self.hold_ramp();
         Ok(())
     }
 
@@ -662,6 +718,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Stops now: valves closed, motion stopped, drivers off.
     pub fn abort(&mut self, out: &mut impl Outputs) {
         self.safe_outputs(out);
+        self.stop_ramp();
         if !matches!(self.phase, Phase::Faulted(_)) {
             self.phase = Phase::Aborted;
         }
@@ -674,6 +731,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// The one path to the safe state: all valves closed, motion stopped, drivers off.
     fn safe_state(&mut self, fault: Fault, out: &mut impl Outputs) {
         self.safe_outputs(out);
+        self.stop_ramp();
         self.phase = Phase::Faulted(fault);
         self.pending_fault = None;
     }
@@ -687,6 +745,15 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.want = None;
         out.drivers(false);
         self.drivers_on = false;
+    }
+
+    /// Motion stops where the outputs are, not where the plan ran ahead to. Once per
+    /// fault or abort: refilling the window is 24 KiB of stores.
+    fn stop_ramp(&mut self) {
+        if self.ramped {
+            self.head_pos = self.ramp.position();
+            self.hold_ramp();
+        }
     }
 
     /// One control cycle at time `now_us`. One call per period; a call less than half a
@@ -739,42 +806,106 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         self.last_dv = total_dv;
+        if self.ramped {
+            return self.ramped_outputs(cycles, total_dv, out);
+        }
         // Steps for where the head now is.
-        if let Err(e) = self.steps.move_over(self.head_pos, cycles as u32, out) {
-            let f = Fault::StepRate {
-                axis: e.axis,
-                steps: e.steps,
-                max: e.max,
-            };
+        if let Err(f) = self.move_head(self.head_pos, cycles, out) {
             self.safe_state(f, out);
             return Err(f);
         }
-        // Syringe plungers (E axes).
-        if self.machine.syringes {
-            let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
-            for (i, inlet) in self.machine.inlets.iter().enumerate() {
-                let Some(sy) = inlet.syringe else { continue };
-                // Step counts fit i32 (2^31 steps is a thousand litres); beyond, the
-                // saturated target becomes a step-rate fault.
-                let target = (self.plunger_vol[i].mm3::<R>() * sy.steps_per_mm3).round_i32() as i64;
-                let d = target - self.plunger_steps[i];
-                if d.unsigned_abs() > max {
-                    let f = Fault::StepRate {
-                        axis: Axis::E(i as u8),
-                        steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
-                        max: max as u32,
-                    };
-                    self.safe_state(f, out);
-                    return Err(f);
-                }
-                if d != 0 {
-                    out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
-                    self.plunger_steps[i] = target;
-                }
+        if let Err(f) = self.move_plungers(false, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        self.set_valves(self.model.commanded(), out);
+        Ok(self.plan_report())
+    }
+
+    /// The outputs of a tick with speed ramps: the cycles just planned enter the window
+    /// and the outputs show it. Out of line, so that machines without ramps run the tick
+    /// they ran before ramps existed, plus one branch. A late tick's catch-up cycles enter
+    /// as copies of the last (the window smooths the jump).
+    #[inline(never)]
+    fn ramped_outputs(
+        &mut self,
+        cycles: u64,
+        total_dv: Vol,
+        out: &mut impl Outputs,
+    ) -> Result<Report<R>, Fault> {
+        let dv = Vol(total_dv.0 / cycles.max(1) as i64);
+        for _ in 0..cycles {
+            self.push_frame(dv);
+        }
+        let target = self.ramp.position();
+        if let Err(f) = self.move_head(target, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        if let Err(f) = self.move_plungers(true, cycles, out) {
+            self.safe_state(f, out);
+            return Err(f);
+        }
+        self.set_valves(self.ramp.current().valves, out);
+        Ok(self.ramped_report())
+    }
+
+    /// Steps for head position `target` over `cycles`.
+    #[inline(always)]
+    fn move_head(
+        &mut self,
+        target: [R; 3],
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        self.steps
+            .move_over(target, cycles as u32, out)
+            .map_err(|e| Fault::StepRate {
+                axis: e.axis,
+                steps: e.steps,
+                max: e.max,
+            })
+    }
+
+    /// Syringe plungers (E axes): to the ramp window's current frame (`ramped`) or to the
+    /// volume displaced so far.
+    #[inline(always)]
+    fn move_plungers(
+        &mut self,
+        ramped: bool,
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        if !self.machine.syringes {
+            return Ok(());
+        }
+        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            let Some(sy) = inlet.syringe else { continue };
+            let target = if ramped {
+                self.ramp.current().plunger[i] as i64
+            } else {
+                plunger_steps(self.plunger_vol[i], sy.steps_per_mm3) as i64
+            };
+            let d = target - self.plunger_steps[i];
+            if d.unsigned_abs() > max {
+                return Err(Fault::StepRate {
+                    axis: Axis::E(i as u8),
+                    steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
+                    max: max as u32,
+                });
+            }
+            if d != 0 {
+                out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
+                self.plunger_steps[i] = target;
             }
         }
-        // Valves as decided.
-        let mask = self.model.commanded();
+        Ok(())
+    }
+
+    /// Valves as decided.
+    #[inline(always)]
+    fn set_valves(&mut self, mask: u32, out: &mut impl Outputs) {
         if mask != self.valves_out {
             for i in 0..self.machine.inlet_count() {
                 let bit = 1u32 << i;
@@ -784,7 +915,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
             self.valves_out = mask;
         }
-        Ok(self.report())
     }
 
     /// Volume that left the nozzle off the print path so far (between beads).
@@ -811,24 +941,69 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     fn report(&self) -> Report<R> {
-        let speed = if matches!(self.phase, Phase::Print { .. }) {
-            self.last_dv.mm3::<R>() * self.inv_s * self.model.inv_dt()
+        if self.ramped {
+            self.ramped_report()
         } else {
-            R::ZERO
-        };
+            self.plan_report()
+        }
+    }
+
+    /// The report of a machine without ramps: the plan is what the outputs show.
+    fn plan_report(&self) -> Report<R> {
         Report {
-            state: self.state(),
+            state: self.model_state(),
             position: self.head_pos,
             valves: self.valves_out,
             feeding: self.model.feeding(),
             landing: self.model.channel().landing(),
             q: self.last_q,
             dv: self.last_dv,
-            speed,
+            speed: self.speed(),
             plan_volume: self.head,
             command_index: self.last_index,
             slugs: self.model.channel().len().min(u8::MAX as usize) as u8,
         }
+    }
+
+    /// Head speed along the print path (plan), mm/s: the last cycle's mean flow over the
+    /// bead section (a late tick's catch-up included, whose summed volume would overstate
+    /// it; and without converting the volume again).
+    #[inline(always)]
+    fn speed(&self) -> R {
+        if matches!(self.phase, Phase::Print { .. }) {
+            self.last_q * self.inv_s
+        } else {
+            R::ZERO
+        }
+    }
+
+    /// The report with speed ramps: what the outputs show, half a window behind the plan.
+    /// Out of line, so that machines without ramps do not carry it in their tick.
+    #[inline(never)]
+    fn ramped_report(&self) -> Report<R> {
+        let f = self.ramp.current();
+        Report {
+            state: self.state(),
+            position: self.ramp.position(),
+            valves: self.valves_out,
+            feeding: f.feeding,
+            landing: f.landing,
+            q: self.last_q,
+            dv: Vol(f.dv as i64),
+            speed: self.speed(),
+            plan_volume: self.head,
+            command_index: f.index,
+            slugs: f.slugs,
+        }
+    }
+
+    /// The cycle just planned enters the ramp window; `dv` is its volume alone
+    /// (`last_dv` sums a catch-up's cycles). Out of line, as `ramped_report`.
+    #[inline(never)]
+    fn push_frame(&mut self, dv: Vol) {
+        let mut f = self.frame();
+        f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.ramp.push(f);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
@@ -1322,6 +1497,13 @@ fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
         s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
     }
     (s / machine.dt()).round_i64().max(1) as u64
+}
+
+/// A plunger's step target for the volume it displaced. Step counts fit i32 (2^31 steps
+/// is a thousand litres); beyond, the saturated target becomes a step-rate fault.
+#[inline]
+fn plunger_steps<R: Real>(v: Vol, steps_per_mm3: R) -> i32 {
+    (v.mm3::<R>() * steps_per_mm3).round_i32()
 }
 
 /// A cycle count as u32 for one-instruction conversion (saturates after 5 days at 10 kHz).

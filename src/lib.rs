@@ -15,6 +15,7 @@ pub mod job;
 pub mod motion;
 pub mod outputs;
 mod poly;
+pub mod ramp;
 pub mod real;
 pub mod rheology;
 pub mod step_gen;

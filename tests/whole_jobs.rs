@@ -32,12 +32,33 @@ fn assert_part(name: &str, cfg_name: &str, r: &RunResult, boundaries_at_least: u
     );
     let worst = r.metrics.worst_boundary();
     assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
-    let section = r.metrics.worst_section();
-    assert!(
-        section <= 0.01,
-        "{name}: bead section off by {:.3} %",
-        section * 100.0
-    );
+    if m.ramp_cycles > 1 {
+        // The head ramps through the flow's steps: the section is held over 0.2 mm of
+        // bead, within what the ramp costs at this acceleration (`section_bound`).
+        let section = r.metrics.worst_section_long();
+        let bound = section_bound(&m);
+        assert!(
+            section <= bound,
+            "{name}: bead section off by {:.3} % over 0.2 mm (bound {:.3} %)",
+            section * 100.0,
+            bound * 100.0
+        );
+    } else {
+        let section = r.metrics.worst_section();
+        assert!(
+            section <= 0.01,
+            "{name}: bead section off by {:.3} %",
+            section * 100.0
+        );
+    }
+    for (a, axis) in ["X", "Y"].iter().enumerate() {
+        let limit = m.motion.max_accel[a];
+        assert!(
+            r.axis_accel[a] <= limit * 1.02,
+            "{name}: {axis} accelerated at {:.0} mm/s^2 (1 ms central differences, valve open) over the {limit} limit",
+            r.axis_accel[a]
+        );
+    }
     assert!(
         r.worst_step_error <= 1.0,
         "{name}: steps {} microsteps off the plan",

@@ -90,6 +90,12 @@ pub struct Metrics {
     pub section_cycles: u64,
     /// Where the worst cross-section occurred (x, y), mm.
     pub section_worst_at: [f64; 2],
+    /// Smallest and largest cross-section / S over every `SECTION_LONG_MM` of bead (a
+    /// window sliding by `SECTION_WINDOW_MM`): what a speed ramp through a flow step
+    /// costs the bead.
+    pub section_long_range: (f64, f64),
+    /// Where the worst long-window cross-section occurred (x, y), mm.
+    pub section_long_worst_at: [f64; 2],
     /// Volume landed while the head was not on a bead, mm^3.
     pub off_path_volume: f64,
     /// Landed material runs shorter than the sliver length, merged away.
@@ -108,6 +114,10 @@ impl Metrics {
     pub fn worst_section(&self) -> f64 {
         (1.0 - self.section_range.0).max(self.section_range.1 - 1.0)
     }
+    /// Largest |cross-section / S - 1| over `SECTION_LONG_MM` windows.
+    pub fn worst_section_long(&self) -> f64 {
+        (1.0 - self.section_long_range.0).max(self.section_long_range.1 - 1.0)
+    }
 }
 
 /// Path length over which one cross-section value is taken, mm. Per-cycle steps are
@@ -115,6 +125,10 @@ impl Metrics {
 /// error; over 0.02 mm it is 1e-4, while a bulge or neck that a nozzle of 0.1 mm or more
 /// lays down is still resolved.
 pub const SECTION_WINDOW_MM: f64 = 0.02;
+
+/// Path length of the long cross-section window, mm (the issue's "every 0.2 mm of
+/// bead"; `dollop::config::SECTION_WINDOW_MM`).
+pub const SECTION_LONG_MM: f64 = dollop::config::SECTION_WINDOW_MM;
 
 /// Runs of landed material shorter than this (mm of bead) are counted as slivers and
 /// merged into their neighbours rather than treated as features.
@@ -149,6 +163,9 @@ pub struct Meter {
     bead_area: f64,
     current: Option<(usize, BeadTrace)>,
     last_pos: [f64; 2],
+    /// The current bead's latest short windows (volume, length), at least
+    /// `SECTION_LONG_MM` of them once the bead is that long.
+    recent: std::collections::VecDeque<(f64, f64)>,
     metrics: Metrics,
 }
 
@@ -205,8 +222,10 @@ impl Meter {
             bead_area,
             current: None,
             last_pos: [f64::NAN; 2],
+            recent: Default::default(),
             metrics: Metrics {
                 section_range: (f64::INFINITY, f64::NEG_INFINITY),
+                section_long_range: (f64::INFINITY, f64::NEG_INFINITY),
                 ..Default::default()
             },
         }
@@ -278,6 +297,24 @@ impl Meter {
         }
         self.metrics.section_range = (lo.min(ratio), hi.max(ratio));
         self.metrics.section_cycles += 1;
+        self.recent.push_back((vol, ds));
+        while self.recent.len() > 1
+            && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
+        {
+            self.recent.pop_front();
+        }
+        let (v, l) = self
+            .recent
+            .iter()
+            .fold((0.0, 0.0), |a, w| (a.0 + w.0, a.1 + w.1));
+        if l >= SECTION_LONG_MM {
+            let ratio = v / (l * self.bead_area);
+            let (lo, hi) = self.metrics.section_long_range;
+            if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
+                self.metrics.section_long_worst_at = at;
+            }
+            self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
+        }
     }
 
     /// Finishes the run and returns the metrics.
@@ -285,6 +322,9 @@ impl Meter {
         self.finish_bead();
         if self.metrics.section_cycles == 0 {
             self.metrics.section_range = (1.0, 1.0);
+        }
+        if !self.metrics.section_long_range.0.is_finite() {
+            self.metrics.section_long_range = (1.0, 1.0);
         }
         self.metrics
     }
@@ -301,6 +341,7 @@ impl Meter {
                 .unwrap_or_default();
             self.section(trace.window, at);
         }
+        self.recent.clear();
         let design = &self.beads[bi];
         // Merge slivers.
         let mut runs: Vec<(f64, u8)> = Vec::new();

@@ -90,6 +90,11 @@ pub struct RunResult {
     pub peak_accel: f64,
     /// Most material slugs in the channel and filament at once while printing.
     pub max_slugs: u8,
+    /// Largest acceleration per axis (X, Y, Z) while a valve is open, mm/s^2: 1 ms central
+    /// differences of the commanded head position (the step generator's target).
+    pub axis_accel: [f64; 3],
+    /// Where (s of simulated time) each axis's largest acceleration was measured.
+    pub axis_accel_at: [f64; 3],
     /// Bead section S, mm^2.
     pub bead_area: f64,
     /// Print segments in the job.
@@ -155,6 +160,7 @@ pub fn run_with_plant<R: Real>(
     let mut peak_rate = [0.0f64; 3];
 
     let mut peak_accel = 0.0f64;
+    let mut axis_accel = AxisAccel::new(dt);
     let mut hist: [[f64; 2]; 3] = [[f64::NAN; 2]; 3];
     let mut max_slugs = 0u8;
     let mut landing_prev = job.initial_material;
@@ -186,7 +192,7 @@ pub fn run_with_plant<R: Real>(
                         p.command(i, out.valves & (1 << i) != 0);
                     }
                 }
-                return Ok(finish(
+                return Ok(axis_accel.into(finish(
                     exec.state(),
                     fault,
                     t,
@@ -201,7 +207,7 @@ pub fn run_with_plant<R: Real>(
                     max_slugs,
                     bead_area,
                     job,
-                ));
+                )));
             }
         };
         // What landed during the cycle that just ended.
@@ -256,6 +262,15 @@ pub fn run_with_plant<R: Real>(
                 rate_base[a] = out.pulses[a];
             }
         }
+        axis_accel.cycle(
+            [
+                report.position[0].to_f64(),
+                report.position[1].to_f64(),
+                report.position[2].to_f64(),
+            ],
+            out.valves != 0,
+            t,
+        );
         for a in 0..3 {
             let planned = report.position[a].to_f64() * spm[a];
             let commanded = (out.position[a] + origin[a]) as f64;
@@ -283,7 +298,7 @@ pub fn run_with_plant<R: Real>(
         });
         cycle += 1;
         if matches!(report.state, RunState::Done | RunState::Aborted) {
-            return Ok(finish(
+            return Ok(axis_accel.into(finish(
                 report.state,
                 None,
                 t,
@@ -298,7 +313,7 @@ pub fn run_with_plant<R: Real>(
                 max_slugs,
                 bead_area,
                 job,
-            ));
+            )));
         }
         if cycle > max_cycles {
             return Err(SimError::Timeout(opts.max_time_s));
@@ -359,7 +374,55 @@ fn finish(
         worst_step_error,
         peak_accel,
         max_slugs,
+        axis_accel: [0.0; 3],
+        axis_accel_at: [0.0; 3],
         bead_area,
         segments: job.print_segments(),
+    }
+}
+
+/// Per-axis acceleration by central differences over `k` cycles each side, counted where
+/// a valve is open at the centre.
+struct AxisAccel {
+    k: usize,
+    h: f64,
+    hist: std::collections::VecDeque<([f64; 3], bool, f64)>,
+    peak: [f64; 3],
+    at: [f64; 3],
+}
+
+impl AxisAccel {
+    fn new(dt: f64) -> Self {
+        let k = ((1e-3 / dt).round() as usize).max(1);
+        AxisAccel {
+            k,
+            h: k as f64 * dt,
+            hist: Default::default(),
+            peak: [0.0; 3],
+            at: [0.0; 3],
+        }
+    }
+    fn cycle(&mut self, pos: [f64; 3], valve_open: bool, t: f64) {
+        self.hist.push_back((pos, valve_open, t));
+        if self.hist.len() > 2 * self.k + 1 {
+            self.hist.pop_front();
+        }
+        if self.hist.len() == 2 * self.k + 1 {
+            let (p0, p1, p2) = (self.hist[0].0, self.hist[self.k], self.hist[2 * self.k].0);
+            if p1.1 {
+                for a in 0..3 {
+                    let acc = ((p2[a] - 2.0 * p1.0[a] + p0[a]) / (self.h * self.h)).abs();
+                    if acc > self.peak[a] {
+                        self.peak[a] = acc;
+                        self.at[a] = p1.2;
+                    }
+                }
+            }
+        }
+    }
+    fn into(self, mut r: RunResult) -> RunResult {
+        r.axis_accel = self.peak;
+        r.axis_accel_at = self.at;
+        r
     }
 }

@@ -36,7 +36,7 @@ pub fn run(cfg: &Config, job: &Job) -> RunResult {
 pub fn summary(name: &str, r: &RunResult) {
     let m = &r.metrics;
     eprintln!(
-        "{name}: {:?} {:?} after {:.2} s, {} boundaries, worst {:.4} mm, section {:.5}..{:.5} over {} cycles (worst at {:?}), off-path {:.4} mm3, slivers {}, switches {}, peak accel {:.0} mm/s2, step error {:.3}",
+        "{name}: {:?} {:?} after {:.2} s, {} boundaries, worst {:.4} mm, section {:.5}..{:.5} over {} cycles (worst at {:?}), off-path {:.4} mm3, slivers {}, switches {}, peak accel {:.0} mm/s2, step error {:.3}; over 0.2 mm: section {:.4}..{:.4} (worst at {:?}); axis accel (1 ms, valve open) X {:.0} Y {:.0} mm/s2 (at {:.4} s, {:.4} s)",
         r.state,
         r.fault,
         r.time_s,
@@ -51,6 +51,13 @@ pub fn summary(name: &str, r: &RunResult) {
         r.switches,
         r.peak_accel,
         r.worst_step_error,
+        m.section_long_range.0,
+        m.section_long_range.1,
+        m.section_long_worst_at,
+        r.axis_accel[0],
+        r.axis_accel[1],
+        r.axis_accel_at[0],
+        r.axis_accel_at[1],
     );
     for mm in m.mismatches.iter().take(5) {
         eprintln!("  mismatch: {mm}");
@@ -65,4 +72,15 @@ pub fn summary(name: &str, r: &RunResult) {
             b.error()
         );
     }
+}
+
+/// What a speed ramp through the machine's worst flow step may cost the section over
+/// 0.2 mm of bead: 2 %, or where the acceleration limit forces more, the centred ramp's
+/// `step^2 / (8 a)` over 0.2 mm plus a quarter for the ramp's rounding to whole cycles
+/// and corners met mid-ramp.
+pub fn section_bound(m: &dollop::config::Machine<f64, 4>) -> f64 {
+    let a = m.motion.max_accel[0].min(m.motion.max_accel[1]) * dollop::config::RAMP_SHARE;
+    let step = m.flow_step;
+    let cost = step * step / (8.0 * a) / dollop::config::SECTION_WINDOW_MM;
+    (cost * 1.25).max(0.02)
 }

@@ -54,6 +54,39 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         m.v_flow_max, config.motion.print_speed_max_mm_s
     );
     println!("  corner radius           {:.3} mm", m.corner_radius);
+    let a_xy = config.motion.max_accel_mm_s2[0].min(config.motion.max_accel_mm_s2[1]) as f64;
+    if m.flow_step > 0.0 {
+        // What the worst step's ramp needs to keep the section, and the X/Y limit that
+        // gives it that (ramps share the limit with corners).
+        let need = dollop::config::section_accel(m.flow_step);
+        let cost = m.flow_step * m.flow_step
+            / (8.0 * a_xy * dollop::config::RAMP_SHARE)
+            / dollop::config::SECTION_WINDOW_MM;
+        println!(
+            "  worst flow step         {:.2} mm/s at once: keeping the section within {:.0} % over {} mm needs {:.0} mm/s^2 of ramp, an X/Y limit of {:.0} mm/s^2",
+            m.flow_step,
+            dollop::config::SECTION_TOLERANCE * 100.0,
+            dollop::config::SECTION_WINDOW_MM,
+            need,
+            need / dollop::config::RAMP_SHARE
+        );
+        println!(
+            "  speed ramps             {:.1} ms at the X/Y limit of {a_xy} mm/s^2: section up to {:.1} % off over {} mm{}",
+            m.ramp_cycles as f64 * m.period_us as f64 * 1e-3,
+            cost * 100.0,
+            dollop::config::SECTION_WINDOW_MM,
+            if need / dollop::config::RAMP_SHARE > a_xy {
+                " (the machine's acceleration is the limit)"
+            } else {
+                ""
+            }
+        );
+    } else {
+        println!(
+            "  worst flow step         none: the flow changes the head speed at most {:.0} mm/s^2, within the X/Y limit of {a_xy} mm/s^2",
+            m.flow_accel
+        );
+    }
     for (i, (inlet, c)) in m.inlets.iter().zip(config.inlets.iter()).enumerate() {
         println!(
             "  inlet {i} ({}): supply {:.2} kPa",

@@ -1,0 +1,48 @@
+//! `dollop config --check` states the flow's worst speed step and the acceleration that
+//! keeps the bead section through it, so a user sees when the machine is the limit.
+
+use std::path::Path;
+use std::process::Command;
+
+fn check(config: &str) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../configs")
+        .join(config);
+    let out = Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .args(["config", "--check"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
+#[test]
+fn instantaneous_valves_state_the_acceleration_their_worst_step_needs() {
+    let out = check("seed-paper.toml");
+    // Paste B's supply through a channel full of paste A: 10 mm/s * 3.17 / 1.41 at once
+    // when its valve opens; 22.48^2 / (8 * 0.02 * 0.2) mm/s^2 of ramp keeps 2 % over
+    // 0.2 mm, and the ramp gets 1/sqrt(2) of the X/Y limit.
+    assert!(
+        out.contains("worst flow step         22.48 mm/s at once"),
+        "{out}"
+    );
+    assert!(
+        out.contains("needs 15795 mm/s^2 of ramp, an X/Y limit of 22338 mm/s^2"),
+        "{out}"
+    );
+    assert!(
+        out.contains("(the machine's acceleration is the limit)"),
+        "{out}"
+    );
+}
+
+#[test]
+fn real_valves_need_no_ramp() {
+    let out = check("seed-paper-valves.toml");
+    assert!(out.contains("worst flow step         none"), "{out}");
+}

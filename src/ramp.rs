@@ -1,0 +1,234 @@
+//! The head's speed ramps through flow steps: a window of the executor's cycles (what
+//! the model planned: head position, valves, report) whose outputs leave half a window
+//! late, the head at the mean of the window's positions. Where a valve steps the flow,
+//! the head's speed then ramps linearly over the window, centred on the step, instead of
+//! stepping; elsewhere the mean of a straight or filleted path is the path's own motion.
+//! Sizing the window is the config's call (`Machine::ramp_cycles`); this does not look at
+//! the flow.
+
+use crate::executor::RunState;
+use crate::real::Real;
+
+/// Frames the ring holds: a window of up to `RAMP_CAPACITY - 1` cycles (51 ms at
+/// 10 kHz: the seed printhead's 22.5 mm/s step at 630 mm/s^2 of X/Y limit). A power of
+/// two, for the index mask; 48 bytes a frame with four inlets, 24 KiB in all.
+pub const RAMP_CAPACITY: usize = 512;
+
+/// Position unit in the ring: 0.1 um, so that sums are exact (no drift over a job).
+const UNIT_PER_MM: f32 = 1.0e4;
+
+/// One cycle as planned: what the outputs and the report show when it leaves the ring.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame<const N: usize> {
+    /// Head position, 0.1 um.
+    pub pos: [i32; 3],
+    /// Valves commanded open, bit per inlet.
+    pub valves: u32,
+    /// Run state.
+    pub state: RunState,
+    /// Command being executed.
+    pub index: u32,
+    /// Volume that left the nozzle (model), in `Vol` units (an i32 holds up to
+    /// 0.2 mm^3, a cycle's flow at 2 000 mm^3/s and 10 kHz; the report saturates beyond).
+    pub dv: i32,
+    /// Material landing (model).
+    pub landing: u8,
+    /// Inlet feeding the channel (model).
+    pub feeding: Option<u8>,
+    /// Slugs in flight.
+    pub slugs: u8,
+    /// Syringe plunger position per inlet, steps.
+    pub plunger: [i32; N],
+}
+
+impl<const N: usize> Frame<N> {
+    /// Nothing planned: head at the origin, valves closed.
+    pub const IDLE: Self = Frame {
+        pos: [0; 3],
+        valves: 0,
+        state: RunState::Idle,
+        index: 0,
+        dv: 0,
+        landing: 0,
+        feeding: None,
+        slugs: 0,
+        plunger: [0; N],
+    };
+}
+
+/// Converts a position in mm to the ring's unit (saturating far outside any travel).
+pub fn to_units<R: Real>(p: [R; 3]) -> [i32; 3] {
+    let k = R::of(UNIT_PER_MM as f64);
+    [
+        (p[0] * k).round_i32(),
+        (p[1] * k).round_i32(),
+        (p[2] * k).round_i32(),
+    ]
+}
+
+/// The ring of planned cycles and the running sum of the window's positions.
+///
+/// The sums are i32, wrapping: the window's mean lies within a window's travel of its
+/// newest position, so the sum less `window` times that position is exact in an i32
+/// (up to 2^31 / 511 units, 420 mm), and the struct keeps a 4-byte alignment: with
+/// 8, the compiler placed its 24 KiB ahead of the executor's machine, and every access
+/// to the machine's fields on the chip took an extra instruction.
+#[derive(Clone, Debug)]
+pub struct Ramp<const N: usize> {
+    ring: [Frame<N>; RAMP_CAPACITY],
+    /// Index of the newest frame.
+    newest: u32,
+    /// Window length, cycles (odd, at most `RAMP_CAPACITY - 1`).
+    window: u32,
+    sum: [i32; 3],
+}
+
+impl<const N: usize> Ramp<N> {
+    /// An empty ring of window 1 (built at compile time in the board's static).
+    pub const fn new() -> Self {
+        Ramp {
+            ring: [Frame::IDLE; RAMP_CAPACITY],
+            newest: 0,
+            window: 1,
+            sum: [0; 3],
+        }
+    }
+
+    /// Window of `cycles` (made odd, clamped to the capacity), every frame `frame`: the
+    /// head at rest there.
+    pub fn reset(&mut self, cycles: u32, frame: Frame<N>) {
+        let w = (cycles as usize).clamp(1, RAMP_CAPACITY - 1) | 1;
+        self.window = w.min(RAMP_CAPACITY - 1) as u32;
+        for f in self.ring.iter_mut() {
+            *f = frame;
+        }
+        self.newest = 0;
+        for a in 0..3 {
+            self.sum[a] = frame.pos[a].wrapping_mul(self.window as i32);
+        }
+    }
+
+    /// Window length, cycles.
+    pub fn window(&self) -> usize {
+        self.window as usize
+    }
+
+    fn at(&self, back: usize) -> &Frame<N> {
+        &self.ring[(self.newest as usize + RAMP_CAPACITY - back) & (RAMP_CAPACITY - 1)]
+    }
+
+    /// Adds the newest planned cycle; the oldest of the window leaves it.
+    pub fn push(&mut self, frame: Frame<N>) {
+        let leaving = self.at(self.window as usize - 1).pos;
+        for ((sum, &new), &old) in self.sum.iter_mut().zip(&frame.pos).zip(&leaving) {
+            *sum = sum.wrapping_add(new).wrapping_sub(old);
+        }
+        self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
+        self.ring[self.newest as usize] = frame;
+    }
+
+    /// The frame the outputs show now: half a window behind the newest.
+    pub fn current(&self) -> &Frame<N> {
+        self.at(self.window as usize / 2)
+    }
+
+    /// The oldest frame of the window.
+    pub fn oldest(&self) -> &Frame<N> {
+        self.at(self.window as usize - 1)
+    }
+
+    /// The run state the outputs show: the current frame's, except that the job is done
+    /// only once the whole window is (the head still moves until then).
+    pub fn state(&self) -> RunState {
+        let s = self.current().state;
+        if s == RunState::Done && self.oldest().state != RunState::Done {
+            self.oldest().state
+        } else {
+            s
+        }
+    }
+
+    /// The head position the outputs show: the mean of the window's, mm.
+    pub fn position<R: Real>(&self) -> [R; 3] {
+        let w = self.window as i32;
+        let unit = R::ONE / R::of(UNIT_PER_MM as f64);
+        let inv_w = R::ONE / R::from_u32(self.window);
+        let newest = self.at(0).pos;
+        let mut p = [R::ZERO; 3];
+        for a in 0..3 {
+            let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
+            p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
+        }
+        p
+    }
+}
+
+impl<const N: usize> Default for Ramp<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(x: f64) -> Frame<1> {
+        Frame {
+            pos: to_units([x, 0.0, 0.0]),
+            ..Frame::IDLE
+        }
+    }
+
+    /// A speed step from 10 to 22.5 mm/s becomes a linear ramp over the window, centred
+    /// on the step, and the position far from it is the planned one.
+    #[test]
+    fn a_speed_step_becomes_a_centred_ramp() {
+        let dt = 1e-4;
+        let w = 25u32;
+        let mut r: Ramp<1> = Ramp::new();
+        r.reset(w, at(0.0));
+        let mut x = 0.0f64;
+        let mut out = Vec::new();
+        for i in 0..400 {
+            x += if i < 200 { 10.0 } else { 22.5 } * dt;
+            r.push(at(x));
+            out.push(r.position::<f64>()[0]);
+        }
+        let acc: Vec<f64> = out
+            .windows(3)
+            .map(|p| (p[2] - 2.0 * p[1] + p[0]) / (dt * dt))
+            .collect();
+        let peak = acc.iter().cloned().fold(0.0f64, |a, b| a.max(b.abs()));
+        let expected = 12.5 / (w as f64 * dt);
+        // 0.1 um rounding of each position: a few mm/s^2 on second differences at 0.1 ms.
+        assert!(
+            (peak - expected).abs() < 0.05 * expected,
+            "{peak} vs {expected}"
+        );
+        // Far past the step the head is where the plan is, half a window later.
+        let late = out[399];
+        let planned = 200.0 * 10.0 * dt + (399.0 - 12.0 - 199.0) * 22.5 * dt;
+        // Within the ring's 0.1 um unit.
+        assert!((late - planned).abs() < 1e-4, "{late} vs {planned}");
+    }
+
+    #[test]
+    fn outputs_leave_half_a_window_late_and_done_waits_for_the_window() {
+        let mut r: Ramp<1> = Ramp::new();
+        r.reset(5, Frame::IDLE);
+        let mut f = Frame::IDLE;
+        f.valves = 1;
+        r.push(f);
+        r.push(Frame::IDLE);
+        assert_eq!(r.current().valves, 0);
+        r.push(Frame::IDLE);
+        assert_eq!(r.current().valves, 1, "2 cycles late");
+        let mut done = Frame::IDLE;
+        done.state = RunState::Done;
+        for i in 0..5 {
+            r.push(done);
+            assert_eq!(r.state() == RunState::Done, i >= 4, "cycle {i}");
+        }
+    }
+}

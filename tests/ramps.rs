@@ -1,0 +1,181 @@
+//! Whole jobs with valves whose pressure switches at once: the head ramps through the
+//! flow's speed steps within each axis's acceleration limit (1 ms central differences of
+//! the commanded position, wherever a valve is open), boundaries stay within 0.05 mm, and
+//! the section over every 0.2 mm of bead stays within what the limit forces. Also the
+//! trade-off the README quotes: worst section against the acceleration limit.
+
+mod common;
+use common::*;
+use dollop::config::Config;
+use dollop::RunState;
+use dollop_sim::designs::{chessboard, stripes, Job};
+use dollop_sim::RunResult;
+
+/// The seed printhead with instantaneous valves at X/Y acceleration `a`.
+fn seed_at(a: f32) -> Config {
+    let mut c = config("seed-paper.toml");
+    c.motion.max_accel_mm_s2[0] = a;
+    c.motion.max_accel_mm_s2[1] = a;
+    c
+}
+
+/// The food pastes (power law) with their valves made instantaneous.
+fn pastes_instant() -> Config {
+    let mut c = config("food-pastes.toml");
+    for i in c.inlets.iter_mut() {
+        i.valve_open_delay_ms = 0.0;
+        i.valve_close_delay_ms = 0.0;
+        i.pressure_rise_ms = 0.0;
+        i.pressure_decay_ms = 0.0;
+    }
+    c
+}
+
+fn board() -> Job {
+    job(&fill(12.0, 10, 2), chessboard(2.0))
+}
+
+/// Checks the bounds and returns (worst section over 0.2 mm, X, Y acceleration).
+fn assert_ramped(name: &str, cfg: &Config, r: &RunResult) -> (f64, f64, f64) {
+    summary(name, r);
+    let m = cfg.validate::<f64, 4>().unwrap();
+    assert_eq!(r.state, RunState::Done, "{name}: {:?}", r.fault);
+    assert!(m.ramp_cycles > 1, "{name}: no ramps on this machine");
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{name}: {:?}",
+        r.metrics.mismatches
+    );
+    assert!(r.metrics.boundaries.len() >= 40, "{name}: few boundaries");
+    let worst = r.metrics.worst_boundary();
+    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    for (a, axis) in ["X", "Y"].iter().enumerate() {
+        let limit = m.motion.max_accel[a];
+        assert!(
+            r.axis_accel[a] <= limit * 1.02,
+            "{name}: {axis} at {:.0} mm/s^2 over the {limit} limit",
+            r.axis_accel[a]
+        );
+    }
+    let section = r.metrics.worst_section_long();
+    let bound = section_bound(&m);
+    assert!(
+        section <= bound,
+        "{name}: section off by {:.2} % over 0.2 mm (bound {:.2} %)",
+        section * 100.0,
+        bound * 100.0
+    );
+    (section, r.axis_accel[0], r.axis_accel[1])
+}
+
+#[test]
+fn instantaneous_valves_keep_the_acceleration_limit_newtonian() {
+    // The machine: the seed printhead at 5 000 mm/s^2.
+    let cfg = seed_at(5000.0);
+    assert_ramped("chessboard/instant 5000", &cfg, &run(&cfg, &board()));
+    let j = job(&fill(15.0, 6, 2), stripes(2.5));
+    assert_ramped("stripes/instant 5000", &cfg, &run(&cfg, &j));
+}
+
+#[test]
+fn instantaneous_valves_keep_the_acceleration_limit_power_law() {
+    let cfg = pastes_instant();
+    let j = job(&fill(12.0, 8, 2), chessboard(2.0));
+    assert_ramped("chessboard/power law instant", &cfg, &run(&cfg, &j));
+    let j = job(&fill(15.0, 6, 2), stripes(2.5));
+    assert_ramped("stripes/power law instant", &cfg, &run(&cfg, &j));
+}
+
+/// Real valves (30/20 ms pressure rise/decay) ramp the flow within the limit by
+/// themselves: the head follows it as it is, section within 1 % over every 0.02 mm.
+#[test]
+fn real_valves_need_no_ramp_and_keep_the_limit() {
+    for name in ["seed-paper-valves.toml", "food-pastes.toml"] {
+        let cfg = config(name);
+        let m = cfg.validate::<f64, 4>().unwrap();
+        assert_eq!(m.ramp_cycles, 1, "{name}");
+        let r = run(&cfg, &board());
+        summary(name, &r);
+        assert_eq!(r.state, RunState::Done);
+        assert!(r.metrics.worst_boundary() <= 0.05);
+        assert!(r.metrics.worst_section() <= 0.01);
+        for a in 0..2 {
+            assert!(
+                r.axis_accel[a] <= m.motion.max_accel[a] * 1.02,
+                "{name}: axis {a}"
+            );
+        }
+    }
+}
+
+/// The README's table: the seed printhead with instantaneous valves, 2 mm chessboard,
+/// at four X/Y limits.
+#[test]
+fn ramp_trade_off_on_the_seed_printhead() {
+    let mut rows = Vec::new();
+    for a in [1000.0f32, 2000.0, 5000.0, 10000.0] {
+        let cfg = seed_at(a);
+        let m = cfg.validate::<f64, 4>().unwrap();
+        let r = run(&cfg, &board());
+        let (section, ax, ay) = assert_ramped(&format!("chessboard/instant {a}"), &cfg, &r);
+        rows.push((
+            a,
+            m.ramp_cycles,
+            section,
+            ax,
+            ay,
+            r.metrics.worst_boundary(),
+        ));
+    }
+    eprintln!("| X/Y limit mm/s^2 | ramp ms | worst section over 0.2 mm | X / Y peak mm/s^2 | worst boundary mm |");
+    for (a, w, s, ax, ay, b) in &rows {
+        eprintln!(
+            "| {a:.0} | {:.1} | {:.1} % | {ax:.0} / {ay:.0} | {b:.4} |",
+            *w as f64 * 0.1,
+            s * 100.0
+        );
+    }
+    // A higher limit never costs more section.
+    for w in rows.windows(2) {
+        assert!(w[1].2 <= w[0].2 + 1e-3, "{rows:?}");
+    }
+}
+
+/// An abort while the head ramps stops the outputs where they are: no step and no valve
+/// after it, although the plan ran half a window ahead.
+#[test]
+fn abort_mid_ramp_stops_where_the_outputs_are() {
+    use dollop::{Executor, RecordingOutputs};
+    let cfg = seed_at(2000.0);
+    let m = cfg.validate::<f32, 4>().unwrap();
+    assert!(m.ramp_cycles > 1);
+    let j = board();
+    let mut e: Executor<f32> = Executor::new(m);
+    e.begin(j.start_um, j.initial_material).unwrap();
+    let mut out = RecordingOutputs::default();
+    let mut next = 0;
+    let mut cycle = 0u64;
+    let mut printed = 0;
+    // Into the first bead, past the valve's opening, then a little more.
+    while printed < 500 {
+        while next < j.commands.len() && e.push(j.commands[next]).is_ok() {
+            next += 1;
+        }
+        let r = e.tick(cycle * 100, &mut out).unwrap();
+        if r.state == RunState::Printing && out.valves != 0 {
+            printed += 1;
+        }
+        cycle += 1;
+    }
+    e.abort(&mut out);
+    let (pos, pulses) = (out.position, out.pulses);
+    assert_eq!(out.valves, 0);
+    for _ in 0..2000 {
+        cycle += 1;
+        let r = e.tick(cycle * 100, &mut out).unwrap();
+        assert_eq!(r.state, RunState::Aborted);
+    }
+    assert_eq!(out.valves, 0);
+    assert_eq!(out.pulses, pulses, "stepped after the abort");
+    assert_eq!(out.position, pos);
+}
