@@ -196,7 +196,9 @@ impl BeadTrace {
         if n >= 2 {
             let (a, b) = (self.samples[n - 2], self.samples[n - 1]);
             let (u, v) = ([b[0] - a[0], b[1] - a[1]], [pos[0] - b[0], pos[1] - b[1]]);
-            let turn = (u[0] * v[1] - u[1] * v[0]).atan2(u[0] * v[0] + u[1] * v[1]).abs();
+            let turn = (u[0] * v[1] - u[1] * v[0])
+                .atan2(u[0] * v[0] + u[1] * v[1])
+                .abs();
             if self.s - a[2] <= SAMPLE_MM && turn <= SAMPLE_TURN {
                 self.samples[n - 1] = here;
                 return;

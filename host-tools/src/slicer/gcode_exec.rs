@@ -304,11 +304,15 @@ pub fn export(
     material_names: &[String],
     opt: &RunExport,
 ) -> Result<(String, GcodeStats), SliceError> {
-    let steps = sample_run(config, commands, start_um, initial, opt.sampling)?;
+    let sampled = sample_run(config, commands, start_um, initial, opt.sampling)?;
     let start = start_um.map(|v| v as f64 * 1e-3);
     let accel = config.motion.max_accel_mm_s2.map(|a| a as f64);
-    let steps = gcode_ramps::centre_jumps(&steps, start, accel);
-    let steps = gcode_ramps::run_ups(&steps, start, accel);
+    // Each pass's input is dropped as soon as the next exists: a long job's steps run to
+    // hundreds of megabytes, and a shadowed binding would keep all three alive.
+    let centred = gcode_ramps::centre_jumps(&sampled, start, accel);
+    drop(sampled);
+    let steps = gcode_ramps::run_ups(&centred, start, accel);
+    drop(centred);
     Ok(gcode_dialect::write(
         &steps,
         start,
