@@ -109,20 +109,39 @@ fn run_gcode_meets_the_goals_with_real_valves() {
     }
 }
 
+/// Worst bead section over 0.2 mm when the firmware itself prints `s` (the executor
+/// against the reference plant): what the machine's acceleration allows.
+fn firmware_section(c: &Config, s: &Sliced) -> f64 {
+    let job = dollop_sim::Job {
+        start_um: s.header.start_um,
+        initial_material: s.header.initial_material,
+        commands: s.commands.clone(),
+    };
+    let r = dollop_sim::run::<f32>(c, &job, &Default::default(), |_| {}).unwrap();
+    let (lo, hi) = r.metrics.section_long_range;
+    (1.0 - lo).max(hi - 1.0)
+}
+
 #[test]
 fn run_gcode_with_ideal_valves_lands_boundaries_and_keeps_the_section_near_s() {
     // With ideal valves the flow jumps at a switch (the head from 10 to 21 mm/s on this
-    // machine) faster than 2000 mm/s^2 lets a firmware follow; the export centres the
-    // firmware's ramp on the jump, which leaves about 5 % over the 0.2 mm around it
-    // (1.044..1.063 measured on these and the bench's designs): the section is held to
-    // 7 % here, the boundaries to the goal.
+    // machine) faster than 2000 mm/s^2 lets any head follow: the firmware itself ramps
+    // the speed across the jump (issue 12) and the section strays by what the limit
+    // forces. The G-code, written from that run, is held to the goal or to the firmware's
+    // own section plus 4 points (measured: 1 to 3.6 points over it; 0.12 to 0.15 of S
+    // for the firmware), whichever is looser; the boundaries to the goal.
     let c = config(true);
     for (label, s) in designs(&c) {
         let g = run_export(&c, &s, Kind::Plain);
         let v = judge(&format!("ideal valves, {label}"), &c, &s, &g);
+        let own = firmware_section(&c, &s);
+        eprintln!("  the firmware's own worst section over 0.2 mm: {own:.4}");
         assert!(v.landed >= v.boundaries, "{label}: {v:?}");
         assert!(v.p95_mm <= 0.1, "{label}: {v:?}");
-        assert!(v.worst_section <= 0.07, "{label}: {v:?}");
+        assert!(
+            v.worst_section <= (own + 0.04).max(0.05),
+            "{label}: {v:?} (firmware {own:.4})"
+        );
         assert_eq!(v.full_stops, 0, "{label}");
     }
 }
