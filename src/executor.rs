@@ -549,7 +549,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub fn state(&self) -> RunState {
         match self.phase {
             Phase::Faulted(_) | Phase::Aborted => self.model_state(),
-            _ if self.ramped => self.ramp.state(),
+            // Once resumed, the window still shows the paused frames for half a window;
+            // a host asking then must not be told the print is (still) paused.
+            _ if self.ramped => match self.ramp.state() {
+                RunState::Paused if !matches!(self.phase, Phase::Paused) => self.model_state(),
+                s => s,
+            },
             _ => self.model_state(),
         }
     }

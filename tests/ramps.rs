@@ -179,3 +179,59 @@ fn abort_mid_ramp_stops_where_the_outputs_are() {
     assert_eq!(out.pulses, pulses, "stepped after the abort");
     assert_eq!(out.position, pos);
 }
+
+/// Pause and resume on a machine with ramps: after `resume` the outputs still show the
+/// paused frames for half a window, but the state a host polls must not say "paused"
+/// again (found on the emulated board: `dollop resume` saw Paused, took the print for
+/// paused and left). The job then runs to Done.
+#[test]
+fn a_resumed_print_is_never_reported_paused_while_the_window_drains() {
+    use dollop::{Executor, RecordingOutputs};
+    let cfg = seed_at(2000.0);
+    let m = cfg.validate::<f32, 4>().unwrap();
+    assert!(m.ramp_cycles > 1);
+    let j = board();
+    let mut e: Executor<f32> = Executor::new(m);
+    e.begin(j.start_um, j.initial_material).unwrap();
+    let mut out = RecordingOutputs::default();
+    let mut next = 0;
+    let mut cycle = 0u64;
+    let mut tick = |e: &mut Executor<f32>, next: &mut usize, out: &mut RecordingOutputs| {
+        while *next < j.commands.len() && e.push(j.commands[*next]).is_ok() {
+            *next += 1;
+        }
+        cycle += 1;
+        e.tick(cycle * 100, out).unwrap();
+        e.state()
+    };
+    let mut printed = 0;
+    while printed < 2000 {
+        if tick(&mut e, &mut next, &mut out) == RunState::Printing && out.valves != 0 {
+            printed += 1;
+        }
+    }
+    e.pause();
+    let mut waited = 0;
+    while tick(&mut e, &mut next, &mut out) != RunState::Paused {
+        waited += 1;
+        assert!(waited < 200_000, "never paused");
+    }
+    for _ in 0..1000 {
+        assert_eq!(tick(&mut e, &mut next, &mut out), RunState::Paused);
+    }
+    e.resume();
+    let mut n = 0;
+    loop {
+        let s = tick(&mut e, &mut next, &mut out);
+        assert_ne!(
+            s,
+            RunState::Paused,
+            "reported paused {n} cycles after resume"
+        );
+        if s == RunState::Done {
+            break;
+        }
+        n += 1;
+        assert!(n < 5_000_000, "never finished");
+    }
+}

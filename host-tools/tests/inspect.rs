@@ -16,8 +16,9 @@ fn config() -> Config {
     toml::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
 
-fn job() -> Job {
-    let fill = Fill {
+/// A 12 x 9.6 mm single-layer fill on the seed printhead's pitch.
+fn fill() -> Fill {
+    Fill {
         origin_mm: [20.0, 20.0],
         width_mm: 12.0,
         rows: 12,
@@ -26,8 +27,12 @@ fn job() -> Job {
         layer_mm: 0.6,
         cell_mm: 0.1,
         prime_mm: 8.0,
-    };
-    designs::boustrophedon(&fill, designs::chessboard(3.0))
+    }
+}
+
+/// The job photographed: a chessboard of 3 mm squares.
+fn job() -> Job {
+    designs::boustrophedon(&fill(), designs::chessboard(3.0))
 }
 
 /// A print of `job` on the machine `truth` describes, photographed by `cam`: the photo's
@@ -38,12 +43,12 @@ struct Print {
     pattern_error: f64,
 }
 
-fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> Print {
+/// What lands when `job()` is printed with the executor on `exec` and the plant on
+/// `truth`'s physics, painted at 40 px/mm, with the design painted in the same frame.
+fn deposit(exec: &Config, truth: &Truth) -> (synth::Deposit, dollop_sim::RunResult, Vec<u8>) {
     let job = job();
-    let physics = truth.physics(&config());
-    let plant = synth::plant_config(exec, &physics).unwrap();
-    let pitch = exec.channel.line_pitch_mm as f64;
-    let (_, radius) = inspect::geometry(exec);
+    let plant = synth::plant_config(exec, &truth.physics(&config())).unwrap();
+    let (pitch, radius) = inspect::geometry(exec);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     let frame = Frame {
         lo: plan.lo,
@@ -53,7 +58,12 @@ fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> 
     };
     let (deposit, run) = synth::deposit(exec, &plant, &job, frame).unwrap();
     assert!(run.fault.is_none(), "{:?}", run.fault);
-    let pattern_error = measure::pattern_error(&measure::paint(&plan, &frame), &deposit.px);
+    (deposit, run, measure::paint(&plan, &frame))
+}
+
+fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> Print {
+    let (deposit, run, design) = deposit(exec, truth);
+    let pattern_error = measure::pattern_error(&design, &deposit.px);
     let (img, _) = synth::photograph(&deposit, &synth::FOOD, synth::PLATE_COLOUR, cam);
     let photo = dir.join(name);
     img.save(&photo).unwrap();
@@ -218,18 +228,7 @@ fn a_thicker_paste_is_measured_and_corrected() {
 
 /// The photo of a correct print and its deposit, for the refusals below.
 fn good_print(dir: &Path) -> (synth::Deposit, PathBuf) {
-    let exec = config();
-    let job = job();
-    let plant = synth::plant_config(&exec, &exec).unwrap();
-    let (pitch, radius) = inspect::geometry(&exec);
-    let plan = design::plan(&job.commands, job.start_um, pitch, radius);
-    let frame = Frame {
-        lo: plan.lo,
-        hi: plan.hi,
-        px_per_mm: 40.0,
-        margin_mm: 2.0 * pitch,
-    };
-    let (deposit, _) = synth::deposit(&exec, &plant, &job, frame).unwrap();
+    let (deposit, _, _) = deposit(&config(), &Truth::default());
     let (img, _) = synth::photograph(
         &deposit,
         &synth::FOOD,
@@ -290,17 +289,7 @@ fn bad_photos_are_refused_with_the_reason() {
     refused(&path, &job.commands, job.start_um, "too dark");
 
     // The wrong job: stripes 1.5 mm wide where the photo shows 3 mm squares.
-    let fill = Fill {
-        origin_mm: [20.0, 20.0],
-        width_mm: 12.0,
-        rows: 12,
-        pitch_mm: 0.8,
-        layers: 1,
-        layer_mm: 0.6,
-        cell_mm: 0.1,
-        prime_mm: 8.0,
-    };
-    let stripes = designs::boustrophedon(&fill, designs::stripes(1.5));
+    let stripes = designs::boustrophedon(&fill(), designs::stripes(1.5));
     refused(
         &good,
         &stripes.commands,
