@@ -108,7 +108,8 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = Limits::default().max_pixels)]
     pub max_pixels: u64,
     /// Refuse designs of more print runs than this (layers x rows x material runs: about
-    /// the job's print segments; 2 million make a job of about 12 MB and G-code of 1 GB).
+    /// the job's print segments; 2 million make a job of about 12 MB, and G-code of several
+    /// hundred bytes a segment).
     #[arg(long, value_name = "N", default_value_t = Limits::default().max_segments)]
     pub max_segments: u64,
     /// Refuse meshes of more triangles than this (all bodies together, 3MF components
