@@ -141,43 +141,70 @@ fn ramp_trade_off_on_the_seed_printhead() {
     }
 }
 
+/// The seed printhead with instantaneous valves at 2 000 mm/s^2 (so its head ramps)
+/// printing `board()` cycle by cycle, commands pushed as room allows.
+struct Driven {
+    e: dollop::Executor<f32>,
+    out: dollop::RecordingOutputs,
+    job: Job,
+    next: usize,
+    cycle: u64,
+}
+
+impl Driven {
+    fn new() -> Self {
+        let m = seed_at(2000.0).validate::<f32, 4>().unwrap();
+        assert!(m.ramp_cycles > 1);
+        let job = board();
+        let mut e = dollop::Executor::new(m);
+        e.begin(job.start_um, job.initial_material).unwrap();
+        Driven {
+            e,
+            out: Default::default(),
+            job,
+            next: 0,
+            cycle: 0,
+        }
+    }
+
+    /// One control cycle; the state its report gives.
+    fn tick(&mut self) -> RunState {
+        while self.next < self.job.commands.len()
+            && self.e.push(self.job.commands[self.next]).is_ok()
+        {
+            self.next += 1;
+        }
+        self.cycle += 1;
+        self.e.tick(self.cycle * 100, &mut self.out).unwrap().state
+    }
+
+    /// Ticks until `n` cycles have printed with a valve open.
+    fn print_for(&mut self, n: u32) {
+        let mut printed = 0;
+        while printed < n {
+            if self.tick() == RunState::Printing && self.out.valves != 0 {
+                printed += 1;
+            }
+        }
+    }
+}
+
 /// An abort while the head ramps stops the outputs where they are: no step and no valve
 /// after it, although the plan ran half a window ahead.
 #[test]
 fn abort_mid_ramp_stops_where_the_outputs_are() {
-    use dollop::{Executor, RecordingOutputs};
-    let cfg = seed_at(2000.0);
-    let m = cfg.validate::<f32, 4>().unwrap();
-    assert!(m.ramp_cycles > 1);
-    let j = board();
-    let mut e: Executor<f32> = Executor::new(m);
-    e.begin(j.start_um, j.initial_material).unwrap();
-    let mut out = RecordingOutputs::default();
-    let mut next = 0;
-    let mut cycle = 0u64;
-    let mut printed = 0;
+    let mut d = Driven::new();
     // Into the first bead, past the valve's opening, then a little more.
-    while printed < 500 {
-        while next < j.commands.len() && e.push(j.commands[next]).is_ok() {
-            next += 1;
-        }
-        let r = e.tick(cycle * 100, &mut out).unwrap();
-        if r.state == RunState::Printing && out.valves != 0 {
-            printed += 1;
-        }
-        cycle += 1;
-    }
-    e.abort(&mut out);
-    let (pos, pulses) = (out.position, out.pulses);
-    assert_eq!(out.valves, 0);
+    d.print_for(500);
+    d.e.abort(&mut d.out);
+    let (pos, pulses) = (d.out.position, d.out.pulses);
+    assert_eq!(d.out.valves, 0);
     for _ in 0..2000 {
-        cycle += 1;
-        let r = e.tick(cycle * 100, &mut out).unwrap();
-        assert_eq!(r.state, RunState::Aborted);
+        assert_eq!(d.tick(), RunState::Aborted);
     }
-    assert_eq!(out.valves, 0);
-    assert_eq!(out.pulses, pulses, "stepped after the abort");
-    assert_eq!(out.position, pos);
+    assert_eq!(d.out.valves, 0);
+    assert_eq!(d.out.pulses, pulses, "stepped after the abort");
+    assert_eq!(d.out.position, pos);
 }
 
 /// Pause and resume on a machine with ramps: after `resume` the outputs still show the
@@ -186,43 +213,26 @@ fn abort_mid_ramp_stops_where_the_outputs_are() {
 /// paused and left). The job then runs to Done.
 #[test]
 fn a_resumed_print_is_never_reported_paused_while_the_window_drains() {
-    use dollop::{Executor, RecordingOutputs};
-    let cfg = seed_at(2000.0);
-    let m = cfg.validate::<f32, 4>().unwrap();
-    assert!(m.ramp_cycles > 1);
-    let j = board();
-    let mut e: Executor<f32> = Executor::new(m);
-    e.begin(j.start_um, j.initial_material).unwrap();
-    let mut out = RecordingOutputs::default();
-    let mut next = 0;
-    let mut cycle = 0u64;
-    let mut tick = |e: &mut Executor<f32>, next: &mut usize, out: &mut RecordingOutputs| {
-        while *next < j.commands.len() && e.push(j.commands[*next]).is_ok() {
-            *next += 1;
-        }
-        cycle += 1;
-        e.tick(cycle * 100, out).unwrap();
-        e.state()
-    };
-    let mut printed = 0;
-    while printed < 2000 {
-        if tick(&mut e, &mut next, &mut out) == RunState::Printing && out.valves != 0 {
-            printed += 1;
-        }
-    }
-    e.pause();
+    let mut d = Driven::new();
+    d.print_for(2000);
+    d.e.pause();
     let mut waited = 0;
-    while tick(&mut e, &mut next, &mut out) != RunState::Paused {
+    while {
+        d.tick();
+        d.e.state() != RunState::Paused
+    } {
         waited += 1;
         assert!(waited < 200_000, "never paused");
     }
     for _ in 0..1000 {
-        assert_eq!(tick(&mut e, &mut next, &mut out), RunState::Paused);
+        d.tick();
+        assert_eq!(d.e.state(), RunState::Paused);
     }
-    e.resume();
+    d.e.resume();
     let mut n = 0;
     loop {
-        let s = tick(&mut e, &mut next, &mut out);
+        d.tick();
+        let s = d.e.state();
         assert_ne!(
             s,
             RunState::Paused,
