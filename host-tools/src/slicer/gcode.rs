@@ -395,8 +395,32 @@ fn coarse_profile(head: &Head, total_s: f64, segments: usize) -> Profile {
     prof
 }
 
+/// Refuses a job (its commands and the material it starts primed with) that names a
+/// material the machine has no inlet for.
+pub(super) fn check_materials(
+    commands: &[Command],
+    initial: u8,
+    inlets: usize,
+) -> Result<(), SliceError> {
+    let worst = commands
+        .iter()
+        .filter_map(|c| match c {
+            Command::Print { material, .. } => Some(*material),
+            _ => None,
+        })
+        .chain([initial])
+        .max()
+        .unwrap_or(0);
+    if worst as usize >= inlets {
+        return Err(SliceError::Option(format!(
+            "the job uses material {worst} but the machine has {inlets} inlet(s)"
+        )));
+    }
+    Ok(())
+}
+
 /// Formats a coordinate or feed rate: fixed decimals, trailing zeros dropped.
-fn num(out: &mut String, v: f64, decimals: usize) {
+pub(super) fn num(out: &mut String, v: f64, decimals: usize) {
     let start = out.len();
     let _ = write!(out, "{:.*}", decimals, v);
     if out[start..].contains('.') {
@@ -463,21 +487,7 @@ pub fn export(
     material_names: &[String],
     style: Style,
 ) -> Result<(String, GcodeStats), SliceError> {
-    let inlets = machine.inlets.len();
-    let worst = commands
-        .iter()
-        .filter_map(|c| match c {
-            Command::Print { material, .. } => Some(*material),
-            _ => None,
-        })
-        .chain([initial])
-        .max()
-        .unwrap_or(0);
-    if worst as usize >= inlets {
-        return Err(SliceError::Option(format!(
-            "the job uses material {worst} but the machine has {inlets} inlet(s)"
-        )));
-    }
+    check_materials(commands, initial, machine.inlets.len())?;
     let flat = flatten(commands, start_um, initial);
     let mut head = Head::new(machine, initial);
     plan_switches(&mut head, &flat, style);

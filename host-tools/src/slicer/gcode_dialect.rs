@@ -4,7 +4,7 @@
 //! `M42 P<pin> S0|255`). What each assumes of the firmware is on `Dialect`. Only
 //! formatting lives here: where moves and valve changes fall is decided before.
 
-use super::gcode::GcodeStats;
+use super::gcode::{num, GcodeStats};
 use super::gcode_exec::Step;
 use dollop::config::Config;
 use std::fmt::Write as _;
@@ -63,24 +63,6 @@ impl Dialect {
             Kind::RepRap => "reprap",
             Kind::Marlin => "marlin",
         }
-    }
-}
-
-/// Formats a coordinate or feed rate: fixed decimals, trailing zeros dropped.
-fn num(out: &mut String, v: f64, decimals: usize) {
-    let start = out.len();
-    let _ = write!(out, "{:.*}", decimals, v);
-    if out[start..].contains('.') {
-        while out.ends_with('0') {
-            out.pop();
-        }
-        if out.ends_with('.') {
-            out.pop();
-        }
-    }
-    if &out[start..] == "-0" {
-        out.truncate(start);
-        out.push('0');
     }
 }
 

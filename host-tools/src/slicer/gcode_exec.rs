@@ -8,7 +8,7 @@
 //! judging the result is `gcode_judge`'s.
 
 use super::error::SliceError;
-use super::gcode::GcodeStats;
+use super::gcode::{self, GcodeStats};
 use super::gcode_dialect::{self, Dialect};
 use super::gcode_ramps;
 use dollop::config::Config;
@@ -235,21 +235,7 @@ pub fn sample_run(
     initial: u8,
     opt: Sampling,
 ) -> Result<Vec<Step>, SliceError> {
-    let inlets = config.inlets.len();
-    let worst = commands
-        .iter()
-        .filter_map(|c| match c {
-            Command::Print { material, .. } => Some(*material),
-            _ => None,
-        })
-        .chain([initial])
-        .max()
-        .unwrap_or(0);
-    if worst as usize >= inlets {
-        return Err(SliceError::Option(format!(
-            "the job uses material {worst} but the machine has {inlets} inlet(s)"
-        )));
-    }
+    gcode::check_materials(commands, initial, config.inlets.len())?;
     let mut cmds = commands.to_vec();
     if cmds.last() != Some(&Command::End) {
         cmds.push(Command::End);

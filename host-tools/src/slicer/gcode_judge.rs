@@ -59,14 +59,8 @@ pub fn parse(text: &str) -> Vec<Op> {
         let code = line.split(';').next().unwrap_or("").trim();
         let mut words = code.split_whitespace();
         let Some(cmd) = words.next() else { continue };
-        let word = |w: &str| -> Option<(char, f64)> {
-            let c = w.chars().next()?;
-            w[c.len_utf8()..]
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .map(|v| (c.to_ascii_uppercase(), v))
-        };
+        // Words with non-finite numbers are skipped, as unknown words are.
+        let word = |w: &str| super::gcode_sim::word(w).filter(|v| v.1.is_finite());
         match cmd.to_ascii_uppercase().as_str() {
             c @ ("G0" | "G1") => {
                 let mut to = pos;

@@ -29,6 +29,15 @@ pub enum Op {
     Dwell(f64),
 }
 
+/// A G-code word (`X12.5`): its letter, upper-cased, and its number.
+pub(super) fn word(w: &str) -> Option<(char, f64)> {
+    let c = w.chars().next()?;
+    w[c.len_utf8()..]
+        .parse::<f64>()
+        .ok()
+        .map(|v| (c.to_ascii_uppercase(), v))
+}
+
 /// Parses the subset of RepRapFirmware G-code that `gcode::export` writes. Unknown lines
 /// and words are skipped.
 pub fn parse(text: &str) -> Vec<Op> {
@@ -39,13 +48,6 @@ pub fn parse(text: &str) -> Vec<Op> {
         let code = line.split(';').next().unwrap_or("").trim();
         let mut words = code.split_whitespace();
         let Some(cmd) = words.next() else { continue };
-        let word = |w: &str| -> Option<(char, f64)> {
-            let c = w.chars().next()?;
-            w[c.len_utf8()..]
-                .parse::<f64>()
-                .ok()
-                .map(|v| (c.to_ascii_uppercase(), v))
-        };
         match cmd.to_ascii_uppercase().as_str() {
             "G0" | "G1" => {
                 let mut to = pos;
