@@ -15,6 +15,13 @@ fn dollop() -> Command {
     Command::new(env!("CARGO_BIN_EXE_dollop"))
 }
 
+/// `dollop simulate JOB --config CFG`, more arguments to follow.
+fn simulate(job: &Path, cfg: &Path) -> Command {
+    let mut c = dollop();
+    c.arg("simulate").arg(job).arg("--config").arg(cfg);
+    c
+}
+
 /// A small two-material job written as a .dlp for the seed printhead with real valves.
 fn write_job(dir: &Path) -> (PathBuf, PathBuf) {
     let fill = dollop_sim::designs::Fill {
@@ -197,11 +204,7 @@ fn a_time_limit_refuses_a_longer_job_and_leaves_nothing() {
     let trace = dir.path().join("trace.csv");
     let heat = dir.path().join("plate.png");
     let before = files(dir.path());
-    let out = dollop()
-        .arg("simulate")
-        .arg(&job)
-        .arg("--config")
-        .arg(&cfg)
+    let out = simulate(&job, &cfg)
         .args(["--max-seconds", "0.5", "--trace"])
         .arg(&trace)
         .arg("--heatmap")
@@ -219,24 +222,14 @@ fn a_time_limit_refuses_a_longer_job_and_leaves_nothing() {
     );
     assert_eq!(files(dir.path()), before, "outputs or temporary files left");
     // Without the limit the same job runs to the end; the limit takes no nonsense.
-    let ok = dollop()
-        .arg("simulate")
-        .arg(&job)
-        .arg("--config")
-        .arg(&cfg)
-        .output()
-        .unwrap();
+    let ok = simulate(&job, &cfg).output().unwrap();
     assert!(
         ok.status.success(),
         "{}",
         String::from_utf8_lossy(&ok.stderr)
     );
     for bad in ["0", "-3", "nan", "inf"] {
-        let out = dollop()
-            .arg("simulate")
-            .arg(&job)
-            .arg("--config")
-            .arg(&cfg)
+        let out = simulate(&job, &cfg)
             .arg(format!("--max-seconds={bad}"))
             .output()
             .unwrap();
@@ -261,14 +254,7 @@ fn a_job_without_boundaries_reports_no_worst_boundary() {
     };
     let job = dollop_sim::designs::boustrophedon(&fill, |_, _, _| 0);
     let (job, cfg) = write_commands(dir.path(), "plain.dlp", &job.commands, job.start_um, 0);
-    let out = dollop()
-        .arg("simulate")
-        .arg(&job)
-        .arg("--config")
-        .arg(&cfg)
-        .arg("--report")
-        .output()
-        .unwrap();
+    let out = simulate(&job, &cfg).arg("--report").output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -314,14 +300,7 @@ fn a_material_sequence_that_differs_from_the_design_fails_and_says_where() {
         Command::End,
     ];
     let (job, cfg) = write_commands(dir.path(), "blip.dlp", &commands, [20_000, 20_000, 600], 0);
-    let out = dollop()
-        .arg("simulate")
-        .arg(&job)
-        .arg("--config")
-        .arg(&cfg)
-        .arg("--report")
-        .output()
-        .unwrap();
+    let out = simulate(&job, &cfg).arg("--report").output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "a differing sequence passed");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
@@ -357,11 +336,7 @@ fn ctrl_c_removes_the_temporary_files_and_writes_nothing() {
     );
     let before = files(dir.path());
     let trace = dir.path().join("trace.csv");
-    let mut child = dollop()
-        .arg("simulate")
-        .arg(&job)
-        .arg("--config")
-        .arg(&cfg)
+    let mut child = simulate(&job, &cfg)
         .arg("--trace")
         .arg(&trace)
         .stderr(std::process::Stdio::piped())
