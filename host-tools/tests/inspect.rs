@@ -35,6 +35,18 @@ fn job() -> Job {
     designs::boustrophedon(&fill(), designs::chessboard(3.0))
 }
 
+/// The same job with corner markers, as `dollop slice --markers` adds them.
+fn marked(job: Job) -> Job {
+    let commands = dollop_host::slicer::markers::add(
+        &job.commands,
+        job.start_um,
+        0.8,
+        ([0.0, 0.0], [200.0, 200.0]),
+    )
+    .unwrap();
+    Job { commands, ..job }
+}
+
 /// A print of `job` on the machine `truth` describes, photographed by `cam`: the photo's
 /// path, the plant's own boundaries and pattern error.
 struct Print {
@@ -43,26 +55,32 @@ struct Print {
     pattern_error: f64,
 }
 
-/// What lands when `job()` is printed with the executor on `exec` and the plant on
+/// What lands when `job` is printed with the executor on `exec` and the plant on
 /// `truth`'s physics, painted at 40 px/mm, with the design painted in the same frame.
-fn deposit(exec: &Config, truth: &Truth) -> (synth::Deposit, dollop_sim::RunResult, Vec<u8>) {
-    let job = job();
+/// The deposit's frame takes in the markers (and so the priming bead) when the job has
+/// them; the design is painted in the same frame.
+fn deposit(
+    exec: &Config,
+    truth: &Truth,
+    job: &Job,
+) -> (synth::Deposit, dollop_sim::RunResult, Vec<u8>) {
     let plant = synth::plant_config(exec, &truth.physics(&config())).unwrap();
     let (pitch, radius) = inspect::geometry(exec);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
+    let (lo, hi) = plan.extent();
     let frame = Frame {
-        lo: plan.lo,
-        hi: plan.hi,
+        lo,
+        hi,
         px_per_mm: 40.0,
         margin_mm: 2.0 * pitch,
     };
-    let (deposit, run) = synth::deposit(exec, &plant, &job, frame).unwrap();
+    let (deposit, run) = synth::deposit(exec, &plant, job, frame).unwrap();
     assert!(run.fault.is_none(), "{:?}", run.fault);
     (deposit, run, measure::paint(&plan, &frame))
 }
 
-fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> Print {
-    let (deposit, run, design) = deposit(exec, truth);
+fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera, job: &Job) -> Print {
+    let (deposit, run, design) = deposit(exec, truth, job);
     let pattern_error = measure::pattern_error(&design, &deposit.px);
     let (img, _) = synth::photograph(&deposit, &synth::FOOD, synth::PLATE_COLOUR, cam);
     let photo = dir.join(name);
@@ -74,14 +92,16 @@ fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera) -> 
     }
 }
 
-fn inspect(p: &Print) -> inspect::Inspection {
-    let job = job();
+fn inspect(p: &Print, job: &Job, use_markers: bool) -> inspect::Inspection {
     inspect::inspect(
         &p.photo,
         &job.commands,
         job.start_um,
         &config(),
-        &Default::default(),
+        &inspect::Options {
+            use_markers,
+            ..Default::default()
+        },
     )
     .unwrap()
 }
@@ -126,8 +146,16 @@ fn check(name: &str, truth: Truth, seed: u64) {
         seed,
         ..Default::default()
     };
-    let p = print(dir.path(), &format!("{name}.png"), &exec, &truth, &cam);
-    let ins = inspect(&p);
+    let p = print(
+        dir.path(),
+        &format!("{name}.png"),
+        &exec,
+        &truth,
+        &cam,
+        &job(),
+    );
+    let ins = inspect(&p, &job(), true);
+    assert_eq!(ins.registration, inspect::Registration::Outline);
     let errs = offset_errors(&ins, &p.plant);
     let plant_p95 = p95(&p.plant.iter().map(|b| b.error().abs()).collect::<Vec<_>>());
     eprintln!(
@@ -228,7 +256,7 @@ fn a_thicker_paste_is_measured_and_corrected() {
 
 /// The photo of a correct print and its deposit, for the refusals below.
 fn good_print(dir: &Path) -> (synth::Deposit, PathBuf) {
-    let (deposit, _, _) = deposit(&config(), &Truth::default());
+    let (deposit, _, _) = deposit(&config(), &Truth::default(), &job());
     let (img, _) = synth::photograph(
         &deposit,
         &synth::FOOD,
@@ -342,4 +370,85 @@ fn bad_photos_are_refused_with_the_reason() {
     .err()
     .expect("over the limit");
     assert!(e.to_string().contains("--max-pixels"), "{e}");
+}
+
+/// The same photos of a print with corner markers, registered by the markers and by the
+/// outline alone: (offsets vs plant p95, worst, pattern error minus the plant's).
+fn markers_against_outline(name: &str, truth: Truth, seed: u64) {
+    let dir = tempfile::tempdir().unwrap();
+    let job = marked(job());
+    let cam = Camera {
+        seed,
+        ..Default::default()
+    };
+    let p = print(
+        dir.path(),
+        &format!("{name}.png"),
+        &config(),
+        &truth,
+        &cam,
+        &job,
+    );
+    let mut got = Vec::new();
+    for use_markers in [true, false] {
+        let ins = inspect(&p, &job, use_markers);
+        let want = if use_markers {
+            inspect::Registration::Markers
+        } else {
+            inspect::Registration::OutlineMarkersNotFound
+        };
+        assert_eq!(ins.registration, want, "{name}");
+        assert!(ins.plan.markers.is_some());
+        let errs = offset_errors(&ins, &p.plant);
+        let worst = errs.iter().copied().fold(0.0, f64::max);
+        let pe = (ins.pattern_error - p.pattern_error).abs();
+        eprintln!(
+            "{name} with markers, registered by {:?}: found {}/{}, offset vs plant p95 {:.4} mm, worst {worst:.4} mm; pattern error {:.2} % (plant {:.2} %)",
+            ins.registration,
+            ins.found.len(),
+            ins.plan.boundaries.len(),
+            p95(&errs),
+            100.0 * ins.pattern_error,
+            100.0 * p.pattern_error
+        );
+        got.push((p95(&errs), worst, pe));
+    }
+    // Measured: by the markers p95 0.041 and 0.025 mm, by the outline 0.063 and 0.047 mm;
+    // pattern error off the plant's by 0.20 and 0.67 points, by the outline 0.02 and 3.5.
+    let (m, o) = (got[0], got[1]);
+    assert!(m.0 <= 0.05, "{name}: by the markers p95 {:.4} mm", m.0);
+    assert!(
+        m.0 <= o.0 && m.1 <= o.1 + 0.005,
+        "{name}: the markers ({m:?}) register worse than the outline ({o:?})"
+    );
+    assert!(
+        m.2 <= o.2.max(0.01),
+        "{name}: the pattern error by the markers is off by {:.4}, by the outline {:.4}",
+        m.2,
+        o.2
+    );
+}
+
+#[test]
+fn markers_register_a_longer_channel_as_well_as_the_outline() {
+    markers_against_outline(
+        "markers channel+20",
+        Truth {
+            channel_scale: 1.2,
+            ..Default::default()
+        },
+        7,
+    );
+}
+
+#[test]
+fn markers_register_a_slower_valve_as_well_as_the_outline() {
+    markers_against_outline(
+        "markers dead+10",
+        Truth {
+            dead_time_ms: 10.0,
+            ..Default::default()
+        },
+        8,
+    );
 }

@@ -104,6 +104,11 @@ pub struct Args {
     /// [default: two line pitches].
     #[arg(long, value_name = "MM")]
     pub connect_mm: Option<f64>,
+    /// Print an L-shaped marker outside each corner of a single-layer job (one with longer
+    /// legs), after the design and in its last material, so that `dollop inspect` can
+    /// register a photo of the print by them.
+    #[arg(long)]
+    pub markers: bool,
     /// Refuse images of more pixels than this (width x height; each takes 4 bytes as RGBA).
     #[arg(long, value_name = "N", default_value_t = Limits::default().max_pixels)]
     pub max_pixels: u64,
@@ -258,7 +263,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
     let design = slicer::load_design(&a.designs, &config, &machine, &opts)?;
-    let sliced = slicer::slice_design(&design, &config, &machine, &opts.path)?;
+    let mut sliced = slicer::slice_design(&design, &config, &machine, &opts.path)?;
+    if a.markers {
+        sliced = slicer::with_markers(sliced, &config, &machine)?;
+    }
     // Everything is computed before anything is written; each file is written whole.
     let gcode = a
         .gcode
