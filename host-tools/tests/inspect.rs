@@ -125,10 +125,9 @@ fn p95(v: &[f64]) -> f64 {
 }
 
 /// Re-simulates with the corrected config against the same physics: p95 |boundary error|.
-fn resimulated_p95(corrected: &Config, truth: &Truth) -> f64 {
-    let job = job();
+fn resimulated_p95(corrected: &Config, truth: &Truth, job: &Job) -> f64 {
     let plant = synth::plant_config(corrected, &truth.physics(&config())).unwrap();
-    let r = dollop_sim::run_with_plant::<f32>(corrected, &plant, &job, &Default::default(), |_| {})
+    let r = dollop_sim::run_with_plant::<f32>(corrected, &plant, job, &Default::default(), |_| {})
         .unwrap();
     let e: Vec<f64> = r
         .metrics
@@ -195,7 +194,7 @@ fn check(name: &str, truth: Truth, seed: u64) {
         p.pattern_error
     );
     let s = suggest::suggest(&ins, &exec, &job());
-    let after = resimulated_p95(&s.config, &truth);
+    let after = resimulated_p95(&s.config, &truth, &job());
     eprintln!(
         "{name}: suggestions {:?}; re-simulated p95 {after:.4} mm",
         s.lines
@@ -450,5 +449,172 @@ fn markers_register_a_slower_valve_as_well_as_the_outline() {
             ..Default::default()
         },
         8,
+    );
+}
+
+/// `dollop slice --calibration-pattern` for the test's machine, as the library makes it.
+fn calibration_job() -> Job {
+    use dollop_host::slicer;
+    let c = config();
+    let machine = slicer::validate(Path::new("config"), &c).unwrap();
+    let d = slicer::calibration::pattern(
+        machine.inlet_count(),
+        c.channel.line_pitch_mm as f64,
+        slicer::toolpath::transit_mm(&machine),
+    );
+    let path = slicer::calibration::path_options(Default::default());
+    let s = slicer::slice_design(&d, &c, &machine, &path).unwrap();
+    let s = slicer::with_markers(s, &c, &machine).unwrap();
+    Job {
+        start_um: s.header.start_um,
+        initial_material: s.header.initial_material,
+        commands: s.commands,
+    }
+}
+
+/// A photo of the calibration pattern printed on a machine off by `truth`: `--suggest`
+/// must name the parameter (`want`, as its report line begins), recover its value
+/// within `tol` of `value`, and the re-simulated print's boundaries lie within 0.1 mm.
+fn calibrate(name: &str, truth: Truth, seed: u64, want: &str, value: f64, tol: f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let job = calibration_job();
+    let exec = config();
+    let cam = Camera {
+        seed,
+        ..Default::default()
+    };
+    let p = print(
+        dir.path(),
+        &format!("{name}.png"),
+        &exec,
+        &truth,
+        &cam,
+        &job,
+    );
+    let ins = inspect(&p, &job, true);
+    assert_eq!(ins.registration, inspect::Registration::Markers, "{name}");
+    let errs = offset_errors(&ins, &p.plant);
+    let s = suggest::suggest(&ins, &exec, &job);
+    let after = resimulated_p95(&s.config, &truth, &job);
+    let best = &s.fits[0];
+    eprintln!(
+        "{name} (calibration pattern): found {}/{}, offset vs plant p95 {:.4} mm, worst {:.4} mm; pattern error {:.2} % (plant {:.2} %); best fit {} = {:.4} [{:.4}, {:.4}] leaving {:.3} mm RMS (next: {}); re-simulated p95 {after:.4} mm",
+        ins.found.len(),
+        ins.plan.boundaries.len(),
+        p95(&errs),
+        errs.iter().copied().fold(0.0, f64::max),
+        100.0 * ins.pattern_error,
+        100.0 * p.pattern_error,
+        best.what,
+        best.value.0,
+        best.value.1,
+        best.value.2,
+        best.rms,
+        s.fits.get(1).map_or(String::new(), |f| format!("{} leaving {:.3} mm RMS", f.what, f.rms)),
+    );
+    assert!(
+        best.what.starts_with(want),
+        "{name}: believed off: {}",
+        best.what
+    );
+    assert!(
+        (best.value.0 - value).abs() <= tol,
+        "{name}: {} = {} (truth {value})",
+        best.what,
+        best.value.0
+    );
+    assert!(
+        after <= 0.1,
+        "{name}: after the correction p95 is {after:.4} mm"
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_longer_channel() {
+    calibrate(
+        "cal channel+20",
+        Truth {
+            channel_scale: 1.2,
+            ..Default::default()
+        },
+        11,
+        "channel",
+        1.2,
+        0.02,
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_shorter_channel() {
+    calibrate(
+        "cal channel-20",
+        Truth {
+            channel_scale: 0.8,
+            ..Default::default()
+        },
+        12,
+        "channel",
+        0.8,
+        0.02,
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_slower_valve() {
+    calibrate(
+        "cal dead+10",
+        Truth {
+            dead_time_ms: 10.0,
+            ..Default::default()
+        },
+        13,
+        "valve dead time",
+        10.0,
+        1.5,
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_faster_valve() {
+    calibrate(
+        "cal dead-10",
+        Truth {
+            dead_time_ms: -10.0,
+            ..Default::default()
+        },
+        14,
+        "valve dead time",
+        -10.0,
+        1.5,
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_thicker_paste() {
+    calibrate(
+        "cal viscosity+20",
+        Truth {
+            viscosity_scale: [1.0, 1.2, 1.0, 1.0],
+            ..Default::default()
+        },
+        15,
+        "viscosity of inlet 1",
+        1.2,
+        0.03,
+    );
+}
+
+#[test]
+fn the_calibration_pattern_finds_a_thinner_paste() {
+    calibrate(
+        "cal viscosity-20",
+        Truth {
+            viscosity_scale: [0.8, 1.0, 1.0, 1.0],
+            ..Default::default()
+        },
+        16,
+        "viscosity of inlet 0",
+        0.8,
+        0.03,
     );
 }

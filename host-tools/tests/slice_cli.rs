@@ -209,3 +209,45 @@ fn markers_are_added_to_a_single_layer_job_and_recognised() {
     );
     assert!(!d.join("two.dlp").exists());
 }
+
+#[test]
+fn the_calibration_pattern_is_written_with_markers() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = manifest("../configs/seed-paper-valves.toml");
+    let (code, out, err) = dollop(d, &["slice", "--calibration-pattern", "--config", &config]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("wrote calibration.dlp"), "{out}");
+    let (h, cmds) = read_job(&d.join("calibration.dlp")).unwrap();
+    let plan = dollop_host::inspect::design::plan(&cmds, h.start_um, 0.8, 0.0);
+    assert!(plan.markers.is_some());
+    // Two materials: 7 rows each way plus the row handing over from one to the other,
+    // each its own bead; two switches a row but one in the hand-over.
+    assert_eq!(plan.beads.len(), 15);
+    assert_eq!(plan.boundaries.len(), 29);
+    let dirs = |from: u8| plan.boundaries.iter().filter(|b| b.from == from).count();
+    assert_eq!((dirs(0), dirs(1)), (15, 14));
+    // The first switches lie at seven distances from their rows' starts.
+    let mut firsts: Vec<i64> = plan
+        .beads
+        .iter()
+        .filter(|b| b.runs.len() == 3)
+        .map(|b| (b.runs[1].0 * 100.0).round() as i64)
+        .collect();
+    firsts.sort_unstable();
+    firsts.dedup();
+    assert_eq!(firsts.len(), 7, "{firsts:?}");
+    // A design as well is refused.
+    let (code, _, err) = dollop(
+        d,
+        &[
+            "slice",
+            &manifest("designs/logo.png"),
+            "--calibration-pattern",
+            "--config",
+            &config,
+        ],
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("--calibration-pattern"), "{err}");
+}

@@ -5,6 +5,7 @@
 //! [`gcode::export`]) and
 //! [`preview::render`]. Running jobs is the `dollop-sim` crate's business.
 
+pub mod calibration;
 pub mod design;
 pub mod error;
 pub mod gcode;
