@@ -53,6 +53,8 @@ struct Print {
     photo: PathBuf,
     plant: Vec<dollop_sim::metrics::Boundary>,
     pattern_error: f64,
+    /// The plant's pattern error as another material and as bare plate.
+    parts: (f64, f64),
 }
 
 /// What lands when `job` is printed with the executor on `exec` and the plant on
@@ -82,6 +84,7 @@ fn deposit(
 fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera, job: &Job) -> Print {
     let (deposit, run, design) = deposit(exec, truth, job);
     let pattern_error = measure::pattern_error(&design, &deposit.px);
+    let parts = measure::pattern_error_parts(&design, &deposit.px);
     let (img, _) = synth::photograph(&deposit, &synth::FOOD, synth::PLATE_COLOUR, cam);
     let photo = dir.join(name);
     img.save(&photo).unwrap();
@@ -89,6 +92,7 @@ fn print(dir: &Path, name: &str, exec: &Config, truth: &Truth, cam: &Camera, job
         photo,
         plant: run.metrics.boundaries,
         pattern_error,
+        parts,
     }
 }
 
@@ -118,6 +122,18 @@ fn offset_errors(ins: &inspect::Inspection, plant: &[dollop_sim::metrics::Bounda
                 .map(|p| (f.offset - p.error()).abs())
         })
         .collect()
+}
+
+/// Prints where the pattern error comes from, inspect's against the plant's.
+fn parts(name: &str, ins: &inspect::Inspection, p: &Print) {
+    let (o, b) = measure::pattern_error_parts(&ins.design, &ins.seen);
+    eprintln!(
+        "{name}: pattern error as another material {:.2} % (plant {:.2} %), as plate {:.2} % (plant {:.2} %)",
+        100.0 * o,
+        100.0 * p.parts.0,
+        100.0 * b,
+        100.0 * p.parts.1
+    );
 }
 
 fn p95(v: &[f64]) -> f64 {
@@ -167,6 +183,7 @@ fn check(name: &str, truth: Truth, seed: u64) {
         100.0 * p.pattern_error,
         100.0 * ins.unexplained
     );
+    parts(name, &ins, &p);
     // Boundaries that land within a pitch of a turn are not read (see measure::boundaries).
     assert!(
         ins.found.len() * 4 >= ins.plan.boundaries.len() * 3,
@@ -410,18 +427,21 @@ fn markers_against_outline(name: &str, truth: Truth, seed: u64) {
             100.0 * ins.pattern_error,
             100.0 * p.pattern_error
         );
+        parts(name, &ins, &p);
         got.push((p95(&errs), worst, pe));
     }
     // Measured: by the markers p95 0.041 and 0.025 mm, by the outline 0.063 and 0.047 mm;
-    // pattern error off the plant's by 0.20 and 0.67 points, by the outline 0.02 and 3.5.
+    // pattern error off the plant's by 0.20 and 0.67 points, by the outline 0.02 and 3.52.
     let (m, o) = (got[0], got[1]);
     assert!(m.0 <= 0.05, "{name}: by the markers p95 {:.4} mm", m.0);
     assert!(
         m.0 <= o.0 && m.1 <= o.1 + 0.005,
         "{name}: the markers ({m:?}) register worse than the outline ({o:?})"
     );
+    // The rest of the pattern error is bare plate the plant leaves in slivers narrower
+    // than the photo resolves (see the README).
     assert!(
-        m.2 <= o.2.max(0.01),
+        m.2 <= 0.01 && m.2 <= o.2.max(0.005),
         "{name}: the pattern error by the markers is off by {:.4}, by the outline {:.4}",
         m.2,
         o.2
@@ -497,6 +517,7 @@ fn calibrate(name: &str, truth: Truth, seed: u64, want: &str, value: f64, tol: f
     let s = suggest::suggest(&ins, &exec, &job);
     let after = resimulated_p95(&s.config, &truth, &job);
     let best = &s.fits[0];
+    parts(name, &ins, &p);
     eprintln!(
         "{name} (calibration pattern): found {}/{}, offset vs plant p95 {:.4} mm, worst {:.4} mm; pattern error {:.2} % (plant {:.2} %); best fit {} = {:.4} [{:.4}, {:.4}] leaving {:.3} mm RMS (next: {}); re-simulated p95 {after:.4} mm",
         ins.found.len(),
@@ -511,6 +532,19 @@ fn calibrate(name: &str, truth: Truth, seed: u64, want: &str, value: f64, tol: f
         best.value.2,
         best.rms,
         s.fits.get(1).map_or(String::new(), |f| format!("{} leaving {:.3} mm RMS", f.what, f.rms)),
+    );
+    // Measured: p95 0.015 to 0.035 mm against the plant's; pattern error 0.01 to 0.39
+    // points off the plant's.
+    assert!(
+        p95(&errs) <= 0.05,
+        "{name}: offsets p95 {:.4} mm",
+        p95(&errs)
+    );
+    assert!(
+        (ins.pattern_error - p.pattern_error).abs() <= 0.005,
+        "{name}: pattern error {:.4} vs the plant's {:.4}",
+        ins.pattern_error,
+        p.pattern_error
     );
     assert!(
         best.what.starts_with(want),

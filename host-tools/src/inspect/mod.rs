@@ -176,7 +176,7 @@ impl Inspection {
         );
         let _ = writeln!(
             s,
-            "registered by    {}",
+            "registered by     {}",
             match self.registration {
                 Registration::Markers => "the four corner markers",
                 Registration::Outline => "the print's outline (the job has no corner markers)",
