@@ -161,3 +161,93 @@ fn config_without_a_flag_says_what_to_give() {
     assert_eq!(code, 1);
     assert!(err.contains("--example"), "{err}");
 }
+
+#[test]
+fn markers_are_added_to_a_single_layer_job_and_recognised() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = manifest("../configs/seed-paper.toml");
+    let logo = manifest("designs/logo.png");
+    let args = ["slice", &logo, "--config", &config, "--width-mm", "30"];
+    let (code, _, err) = dollop(d, &[&args[..], &["--out", "plain.dlp"]].concat());
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = dollop(
+        d,
+        &[&args[..], &["--out", "marked.dlp", "--markers"]].concat(),
+    );
+    assert_eq!(code, 0, "{err}");
+    let (_, plain) = read_job(&d.join("plain.dlp")).unwrap();
+    let (h, marked) = read_job(&d.join("marked.dlp")).unwrap();
+    assert_eq!(h.commands as usize, marked.len());
+    // Four beads of two segments each, after the design.
+    assert_eq!(marked.len(), plain.len() + 12, "{out}");
+    // The design unchanged; the markers after its last bead, before the lift that ends it.
+    let last = plain
+        .iter()
+        .rposition(|c| matches!(c, dollop::Command::Print { .. }))
+        .unwrap();
+    assert_eq!(marked[..=last], plain[..=last]);
+    assert_eq!(marked[last + 13..], plain[last + 1..]);
+    let plan = |c: &[dollop::Command]| dollop_host::inspect::design::plan(c, h.start_um, 0.8, 0.0);
+    let (p, m) = (plan(&plain), plan(&marked));
+    assert!(p.markers.is_none() && m.markers.is_some());
+    assert_eq!(p.beads.len(), m.beads.len());
+    assert_eq!(p.boundaries, m.boundaries);
+    // Several layers: refused in one line, nothing written.
+    let (code, _, err) = dollop(
+        d,
+        &[
+            &args[..],
+            &["--out", "two.dlp", "--markers", "--layers", "2"],
+        ]
+        .concat(),
+    );
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("--markers") && err.contains("single-layer"),
+        "{err}"
+    );
+    assert!(!d.join("two.dlp").exists());
+}
+
+#[test]
+fn the_calibration_pattern_is_written_with_markers() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = manifest("../configs/seed-paper-valves.toml");
+    let (code, out, err) = dollop(d, &["slice", "--calibration-pattern", "--config", &config]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("wrote calibration.dlp"), "{out}");
+    let (h, cmds) = read_job(&d.join("calibration.dlp")).unwrap();
+    let plan = dollop_host::inspect::design::plan(&cmds, h.start_um, 0.8, 0.0);
+    assert!(plan.markers.is_some());
+    // Two materials: 7 rows each way plus the row handing over from one to the other,
+    // each its own bead; two switches a row but one in the hand-over.
+    assert_eq!(plan.beads.len(), 15);
+    assert_eq!(plan.boundaries.len(), 29);
+    let dirs = |from: u8| plan.boundaries.iter().filter(|b| b.from == from).count();
+    assert_eq!((dirs(0), dirs(1)), (15, 14));
+    // The first switches lie at seven distances from their rows' starts.
+    let mut firsts: Vec<i64> = plan
+        .beads
+        .iter()
+        .filter(|b| b.runs.len() == 3)
+        .map(|b| (b.runs[1].0 * 100.0).round() as i64)
+        .collect();
+    firsts.sort_unstable();
+    firsts.dedup();
+    assert_eq!(firsts.len(), 7, "{firsts:?}");
+    // A design as well is refused.
+    let (code, _, err) = dollop(
+        d,
+        &[
+            "slice",
+            &manifest("designs/logo.png"),
+            "--calibration-pattern",
+            "--config",
+            &config,
+        ],
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("--calibration-pattern"), "{err}");
+}

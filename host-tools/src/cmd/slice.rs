@@ -20,7 +20,11 @@ pub struct Args {
     /// Design: one image (PNG, JPEG, BMP; colours are materials), one STL per material
     /// in inlet order (ASCII or binary), or one 3MF whose objects carry the materials
     /// (base material i prints from inlet i; without materials, object i in build order).
-    #[arg(required = true, value_name = "DESIGN")]
+    #[arg(
+        required_unless_present = "calibration_pattern",
+        conflicts_with = "calibration_pattern",
+        value_name = "DESIGN"
+    )]
     pub designs: Vec<PathBuf>,
     /// Machine config (TOML; `dollop config --example` prints one).
     #[arg(long, value_name = "MACHINE.toml")]
@@ -104,6 +108,17 @@ pub struct Args {
     /// [default: two line pitches].
     #[arg(long, value_name = "MM")]
     pub connect_mm: Option<f64>,
+    /// Print an L-shaped marker outside each corner of a single-layer job (one with longer
+    /// legs), after the design and in its last material, so that `dollop inspect` can
+    /// register a photo of the print by them.
+    #[arg(long)]
+    pub markers: bool,
+    /// Instead of a design: the calibration pattern for `dollop inspect --suggest` (for
+    /// every pair of the config's materials, switches in both directions at several
+    /// distances from each row's start, so at different flows), with markers; written to
+    /// --out [default: calibration.dlp].
+    #[arg(long)]
+    pub calibration_pattern: bool,
     /// Refuse images of more pixels than this (width x height; each takes 4 bytes as RGBA).
     #[arg(long, value_name = "N", default_value_t = Limits::default().max_pixels)]
     pub max_pixels: u64,
@@ -257,8 +272,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let opts = a.options()?;
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
-    let design = slicer::load_design(&a.designs, &config, &machine, &opts)?;
-    let sliced = slicer::slice_design(&design, &config, &machine, &opts.path)?;
+    let (design, path) = if a.calibration_pattern {
+        let d = slicer::calibration::pattern(
+            machine.inlet_count(),
+            config.channel.line_pitch_mm as f64,
+            slicer::toolpath::transit_mm(&machine),
+        );
+        (d, slicer::calibration::path_options(opts.path))
+    } else {
+        (
+            slicer::load_design(&a.designs, &config, &machine, &opts)?,
+            opts.path,
+        )
+    };
+    let mut sliced = slicer::slice_design(&design, &config, &machine, &path)?;
+    if a.markers || a.calibration_pattern {
+        sliced = slicer::with_markers(sliced, &config, &machine)?;
+    }
     // Everything is computed before anything is written; each file is written whole.
     let gcode = a
         .gcode
@@ -303,7 +333,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )
         })
         .transpose()?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(&a.designs[0]));
+    let out = a.out.clone().unwrap_or_else(|| match a.designs.first() {
+        Some(d) => default_out(d),
+        None => PathBuf::from("calibration.dlp"),
+    });
     // Every output is staged (written whole to a temporary file beside it) before any is
     // renamed into place: a failure on one (a missing folder, a FIFO at the path) leaves
     // none of them.

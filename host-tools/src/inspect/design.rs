@@ -3,6 +3,7 @@
 //! material boundary with its place along its bead, and the footprint the beads cover.
 //! Reading the photo is the other modules' business.
 
+pub use crate::slicer::markers::Marker;
 use dollop::Command;
 
 /// One bead of the design: its centre line and where its material changes.
@@ -92,6 +93,26 @@ pub struct Plan {
     pub materials: Vec<u8>,
     /// Layers in the job (only the top one is seen from above).
     pub layers: usize,
+    /// The corner markers `dollop slice --markers` printed after the design, if any (not
+    /// among `beads`).
+    pub markers: Option<[Marker; 4]>,
+}
+
+impl Plan {
+    /// Lower-left and upper-right of the footprint with the markers, if any, mm.
+    pub fn extent(&self) -> ([f64; 2], [f64; 2]) {
+        let (mut lo, mut hi) = (self.lo, self.hi);
+        let half = self.pitch / 2.0;
+        for m in self.markers.iter().flatten() {
+            for p in [m.corner, m.ends[0], m.ends[1]] {
+                for a in 0..2 {
+                    lo[a] = lo[a].min(p[a] - half);
+                    hi[a] = hi[a].max(p[a] + half);
+                }
+            }
+        }
+        (lo, hi)
+    }
 }
 
 /// The plan of `commands` (starting at `start_um`) for beads `pitch` mm wide whose
@@ -145,12 +166,21 @@ pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius:
     // the design; it is not part of what is measured.
     let first_is_prime =
         beads.len() > 1 && beads[0].1.points.len() == 2 && beads[0].1.runs.len() == 1;
-    let beads: Vec<Bead> = beads
+    let on_top: Vec<(Vec<[f64; 2]>, usize)> = beads
+        .iter()
+        .filter(|b| b.0 == top)
+        .map(|b| (b.1.points.clone(), b.1.runs.len()))
+        .collect();
+    let markers = crate::slicer::markers::recognise(&on_top, pitch);
+    let mut beads: Vec<Bead> = beads
         .into_iter()
         .enumerate()
         .filter(|(i, b)| b.0 == top && !(*i == 0 && first_is_prime))
         .map(|(_, b)| b.1)
         .collect();
+    if markers.is_some() {
+        beads.truncate(beads.len().saturating_sub(4));
+    }
     let mut raw = beads;
     for b in &mut raw {
         b.turns = turns(b);
@@ -199,6 +229,7 @@ pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius:
         hi,
         materials,
         layers,
+        markers,
     }
 }
 

@@ -81,6 +81,21 @@ pub fn pattern_error(design: &[u8], seen: &[u8]) -> f64 {
     wrong as f64 / n.max(1) as f64
 }
 
+/// The pattern error in its two parts: shares of the design's printed pixels showing
+/// another material, and showing the plate.
+pub fn pattern_error_parts(design: &[u8], seen: &[u8]) -> (f64, f64) {
+    let (mut n, mut other, mut plate) = (0u64, 0u64, 0u64);
+    for (&d, &s) in design.iter().zip(seen) {
+        if d != PLATE {
+            n += 1;
+            other += u64::from(s != d && s != PLATE);
+            plate += u64::from(s == PLATE);
+        }
+    }
+    let n = n.max(1) as f64;
+    (other as f64 / n, plate as f64 / n)
+}
+
 /// One boundary as the photo shows it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Found {

@@ -8,6 +8,7 @@
 pub mod classify;
 pub mod design;
 pub mod error;
+pub mod markers;
 pub mod measure;
 pub mod photo;
 pub mod picture;
@@ -37,6 +38,21 @@ pub struct Options {
     /// late in 3 mm squares are wrong over a third of the area, two materials at random
     /// over half.)
     pub max_unexplained: f64,
+    /// Register by the job's corner markers when the photo shows them (else, or when
+    /// false, by the print's outline).
+    pub use_markers: bool,
+}
+
+/// How the photo was registered to the design.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Registration {
+    /// By the four corner markers.
+    Markers,
+    /// By the print's outline: the job has no markers.
+    Outline,
+    /// By the print's outline: the job has markers, but the photo does not show four
+    /// regions that look like them.
+    OutlineMarkersNotFound,
 }
 
 impl Default for Options {
@@ -45,6 +61,7 @@ impl Default for Options {
             px_per_mm: 40.0,
             max_pixels: photo::MAX_PIXELS,
             max_unexplained: 0.2,
+            use_markers: true,
         }
     }
 }
@@ -92,6 +109,8 @@ pub struct Inspection {
     pub corners: [[f64; 2]; 4],
     /// Quarter turns from the photo's corner order to the design's.
     pub turn: usize,
+    /// What registered the photo.
+    pub registration: Registration,
     /// Learned colour of each material (index into the plan's materials), 0..1 RGB.
     pub colours: Vec<(u8, [f32; 3])>,
     /// Share of the design's area showing the wrong material or none.
@@ -154,6 +173,16 @@ impl Inspection {
             "print found: corners at ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) px; {} quarter turn(s) to the design",
             self.corners[0][0], self.corners[0][1], self.corners[1][0], self.corners[1][1],
             self.corners[2][0], self.corners[2][1], self.corners[3][0], self.corners[3][1], self.turn
+        );
+        let _ = writeln!(
+            s,
+            "registered by     {}",
+            match self.registration {
+                Registration::Markers => "the four corner markers",
+                Registration::Outline => "the print's outline (the job has no corner markers)",
+                Registration::OutlineMarkersNotFound =>
+                    "the print's outline (the job has corner markers, but the photo does not show four)",
+            }
         );
         for (m, c) in &self.colours {
             let _ = writeln!(
@@ -290,9 +319,30 @@ pub fn inspect_photo(
             "the design frame would be {fw} x {fh} px; lower --px-per-mm"
         )));
     }
-    let corners = register::corners(&photo.print).ok_or_else(|| {
-        bad("the print's outline is not a quadrilateral that can be registered; photograph the whole print from above".into())
-    })?;
+    let by_markers = if o.use_markers {
+        markers::register(&photo, &plan, &frame)
+    } else {
+        None
+    };
+    let (corners, registration) = match by_markers {
+        Some(c) => (c, Registration::Markers),
+        None => (
+            register::corners(&photo.print).ok_or_else(|| {
+                bad("the print's outline is not a quadrilateral that can be registered; photograph the whole print from above".into())
+            })?,
+            if plan.markers.is_some() {
+                Registration::OutlineMarkersNotFound
+            } else {
+                Registration::Outline
+            },
+        ),
+    };
+    // The markers leave no turn to decide.
+    let turns = if registration == Registration::Markers {
+        0..1
+    } else {
+        0..4
+    };
     // Colours: k-means over the print's pixels (a sample of at most 200 000).
     let every = ((photo.print_px / 200_000) as usize).max(1);
     let samples: Vec<[f32; 3]> = photo
@@ -310,7 +360,7 @@ pub fn inspect_photo(
     // (agreement, turn, labels, cluster names, picture) of the best turn so far.
     type Turn = (f64, usize, Vec<u8>, Vec<u8>, image::RgbImage);
     let mut best: Option<Turn> = None;
-    for turn in 0..4 {
+    for turn in turns {
         let Some(proj) = register::projection(corners, &frame, turn) else {
             continue;
         };
@@ -431,6 +481,7 @@ pub fn inspect_photo(
         rectified,
         corners,
         turn,
+        registration,
         colours,
         pattern_error,
         unexplained,

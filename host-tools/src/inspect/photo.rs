@@ -26,6 +26,49 @@ pub struct Photo {
     pub print: GrayImage,
     /// Pixels in the print.
     pub print_px: u64,
+    /// The other regions that are not plate (markers, the priming bead, crumbs), largest
+    /// first, at most `MAX_BLOBS`, none smaller than 1/2000 of the print.
+    pub blobs: Vec<Blob>,
+}
+
+/// Regions besides the print kept for finding markers.
+pub const MAX_BLOBS: usize = 32;
+
+/// A region of the photo that is not plate, apart from the print.
+#[derive(Clone, Debug)]
+pub struct Blob {
+    /// Its pixels (x, y).
+    pub px: Vec<[u32; 2]>,
+}
+
+impl Blob {
+    /// Centre of its pixels (pixel centres at +0.5).
+    pub fn centroid(&self) -> [f64; 2] {
+        let n = self.px.len().max(1) as f64;
+        let mut c = [0.0; 2];
+        for p in &self.px {
+            c[0] += (p[0] as f64 + 0.5) / n;
+            c[1] += (p[1] as f64 + 0.5) / n;
+        }
+        c
+    }
+    /// Larger over smaller eigenvalue of its pixels' covariance: about 4 for an L of
+    /// equal legs, tens for a straight bead.
+    pub fn elongation(&self) -> f64 {
+        let c = self.centroid();
+        let n = self.px.len().max(1) as f64;
+        let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+        for p in &self.px {
+            let (dx, dy) = (p[0] as f64 + 0.5 - c[0], p[1] as f64 + 0.5 - c[1]);
+            xx += dx * dx / n;
+            xy += dx * dy / n;
+            yy += dy * dy / n;
+        }
+        let m = nalgebra::Matrix2::new(xx, xy, xy, yy);
+        let e = m.symmetric_eigenvalues();
+        let (a, b) = (e[0].max(e[1]), e[0].min(e[1]));
+        a / b.max(1e-9)
+    }
 }
 
 impl Photo {
@@ -201,12 +244,34 @@ pub fn from_image(path: &Path, img: &RgbImage) -> Result<Photo, InspectError> {
             0
         }])
     });
+    let min_blob = (best_area / 2000).max(20);
+    let mut keep: Vec<usize> = (1..area.len())
+        .filter(|&l| l != best && area[l] >= min_blob)
+        .collect();
+    keep.sort_by_key(|&l| std::cmp::Reverse(area[l]));
+    keep.truncate(MAX_BLOBS);
+    let mut slot = vec![usize::MAX; area.len()];
+    for (i, &l) in keep.iter().enumerate() {
+        slot[l] = i;
+    }
+    let mut blobs: Vec<Blob> = keep
+        .iter()
+        .map(|&l| Blob {
+            px: Vec::with_capacity(area[l] as usize),
+        })
+        .collect();
+    for (x, y, p) in labels.enumerate_pixels() {
+        if let Some(b) = slot.get(p[0] as usize).and_then(|&i| blobs.get_mut(i)) {
+            b.px.push([x, y]);
+        }
+    }
     Ok(Photo {
         size: (w, h),
         rgb: even,
         plate,
         print,
         print_px: best_area,
+        blobs,
     })
 }
 

@@ -43,9 +43,11 @@ pub struct Suggestion {
     pub config: Config,
 }
 
-/// A parameter to search: its name, the truth at a search value, the range searched and
-/// whether the value is a log scale factor.
-type Candidate = (String, Box<dyn Fn(f64) -> Truth>, (f64, f64), bool);
+/// A parameter to search: its name, the truth at a search value, the range searched,
+/// whether the value is a log scale factor, and whether the range's low end is the
+/// physical limit (a best value there is an answer, not the least bad of a range too
+/// narrow).
+type Candidate = (String, Box<dyn Fn(f64) -> Truth>, (f64, f64), bool, bool);
 
 /// Offsets the photo cannot resolve better than this (RMS, mm): nothing is changed.
 pub const DEADBAND_MM: f64 = 0.02;
@@ -119,6 +121,13 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
             if base.is_none() { " and the job does not simulate" } else { "" }
         ));
     } else {
+        // The valves' dead time can be found shorter than configured down to none.
+        let min_delay = config
+            .inlets
+            .iter()
+            .map(|v| v.valve_open_delay_ms.min(v.valve_close_delay_ms) as f64)
+            .fold(40.0, f64::min)
+            .max(0.0);
         let mut candidates: Vec<Candidate> = vec![
             (
                 "channel and filament volume (channel_length_mm)".into(),
@@ -128,6 +137,7 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
                 }),
                 (0.5f64.ln(), 2f64.ln()),
                 true,
+                false,
             ),
             (
                 "valve dead time (valve_open_delay_ms, valve_close_delay_ms)".into(),
@@ -135,8 +145,9 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
                     dead_time_ms: x,
                     ..Default::default()
                 }),
-                (-10.0, 40.0),
+                (-min_delay, 40.0),
                 false,
+                true,
             ),
         ];
         for &m in &i.plan.materials {
@@ -158,16 +169,17 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
                 }),
                 (0.5f64.ln(), 2f64.ln()),
                 true,
+                false,
             ));
         }
         let mut misses = Vec::new();
-        for (what, truth_of, (lo, hi), log) in candidates {
+        for (what, truth_of, (lo, hi), log, lo_physical) in candidates {
             let mut f = |x: f64| {
                 simulated(i, config, job, &truth_of(x)).map_or(f64::INFINITY, |s| sse(i, &s))
             };
             let (x, best) = golden(lo, hi, 14, &mut f);
             // A best value at the edge of the search is no explanation, only the least bad.
-            let edge = (x - lo).min(hi - x) < 0.01 * (hi - lo);
+            let edge = (!lo_physical && x - lo < 0.01 * (hi - lo)) || hi - x < 0.01 * (hi - lo);
             if !best.is_finite() || edge {
                 misses.push(format!(
                     "  {what}: no value in the range searched explains the offsets"

@@ -5,6 +5,7 @@
 //! [`gcode::export`]) and
 //! [`preview::render`]. Running jobs is the `dollop-sim` crate's business.
 
+pub mod calibration;
 pub mod design;
 pub mod error;
 pub mod gcode;
@@ -15,6 +16,7 @@ pub mod gcode_ramps;
 pub mod gcode_sim;
 pub mod image;
 pub mod job_file;
+pub mod markers;
 pub mod mesh;
 pub mod output;
 pub mod preview;
@@ -126,6 +128,50 @@ impl Sliced {
     pub fn file_bytes_per_segment(&self) -> f64 {
         self.to_bytes().len() as f64 / self.header.print_segments.max(1) as f64
     }
+}
+
+/// `sliced` with corner markers for `dollop inspect` printed after the design (see
+/// [`markers`]), within `machine`'s travel.
+pub fn with_markers(
+    sliced: Sliced,
+    config: &Config,
+    machine: &Machine<f64, INLETS>,
+) -> Result<Sliced, SliceError> {
+    let h = &sliced.header;
+    let travel = (
+        [machine.motion.min_mm[0], machine.motion.min_mm[1]],
+        [machine.motion.max_mm[0], machine.motion.max_mm[1]],
+    );
+    let commands = markers::add(
+        &sliced.commands,
+        h.start_um,
+        config.channel.line_pitch_mm as f64,
+        travel,
+    )
+    .map_err(|e| SliceError::Option(format!("--markers: {e}")))?;
+    let mut stats = sliced.stats;
+    for c in &commands[sliced.commands.len() - 1..] {
+        match *c {
+            Command::Print { dx, dy, .. } => {
+                stats.print_segments += 1;
+                stats.print_mm += (dx as f64).hypot(dy as f64) * 1e-3;
+            }
+            Command::Travel { .. } => {
+                stats.travels += 1;
+                stats.beads += 1;
+            }
+            _ => {}
+        }
+    }
+    let body = job_file::encode_body(&commands);
+    let header = job_file::header_for(&commands, &body, h.start_um, h.initial_material, config);
+    Ok(Sliced {
+        header,
+        commands,
+        body,
+        stats,
+        ..sliced
+    })
 }
 
 /// Reads and validates a machine config (TOML, the core's `Config`).

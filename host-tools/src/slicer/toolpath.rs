@@ -18,7 +18,7 @@ pub struct PathOptions {
     /// Priming bead length, mm. Default: 2.5 transit lengths, at least 5 mm.
     pub prime_mm: Option<f64>,
     /// Rows whose ends are at most this far apart (mm) are joined by a printed connector
-    /// instead of a travel. Default: two line pitches.
+    /// instead of a travel; negative: never. Default: two line pitches.
     pub connect_mm: Option<f64>,
 }
 
