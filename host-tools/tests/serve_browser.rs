@@ -140,6 +140,7 @@ fn dashboard_in_a_real_browser() {
 }
 
 async fn run() {
+    let _ = std::fs::remove_file(shots_dir().join("failure.png"));
     // The server, in-process, on a free port; the simulated board 3 times real time.
     let server = serve::start(serve::Args {
         listen: "127.0.0.1:0".parse().expect("address"),
@@ -226,6 +227,16 @@ async fn pages(c: &Client, base: &str) {
     );
     shot(c, "corrupt-upload.png").await;
 
+    // An upload over the stated limit is refused with the limit named.
+    js(
+        c,
+        "(setFiles([new File([new Uint8Array(65 * 1024 * 1024)], 'huge.png')]), true)",
+    )
+    .await;
+    click(c, "#slice").await;
+    let msg = wait_for(c, "!document.getElementById('slice-error').hidden && document.getElementById('slice-error').textContent.includes('64 MiB') && document.getElementById('slice-error').textContent", 60, "the oversize upload's message").await;
+    eprintln!("oversize upload: {msg}");
+
     // A config error is shown at its field.
     click(c, "#config-details summary").await;
     let pitch = c
@@ -297,6 +308,7 @@ async fn pages(c: &Client, base: &str) {
     );
     let layers = js(c, "document.getElementById('layer-select').options.length").await;
     assert!(layers.as_u64().unwrap_or(0) >= 2, "layer choices {layers}");
+    js(c, "(window.scrollTo(0, 0), true)").await;
     shot(c, "design.png").await;
 
     // Simulate: progress, then the report and the heatmap.
@@ -407,6 +419,17 @@ async fn pages(c: &Client, base: &str) {
         "the print resumed",
     )
     .await;
+    // A bead ends the pause: the chessboard is two long beads, so the print may be near
+    // its end now. Let it finish, then abort a third run early.
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity.startsWith('finished')", 60, "the resumed print finished").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"] .queue').textContent.includes('chessboard')", 20, "the job queued again").await;
+    click(
+        c,
+        ".board[data-board=\"0\"] button[data-action=\"start-next\"]",
+    )
+    .await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'printing' && Number(document.querySelector('.board[data-board=\"0\"]').dataset.progress) > 0.05", 60, "the third print running").await;
     click(c, ".board[data-board=\"0\"] button[data-action=\"abort\"]").await;
     wait_for(
         c,
@@ -417,4 +440,51 @@ async fn pages(c: &Client, base: &str) {
     .await;
     let p_abort: f64 = board_field(c, "progress").await.parse().unwrap_or(1.0);
     assert!(p_abort < 1.0, "aborted at {p_abort}");
+
+    // A second tab sees the board but may not command it until it takes control.
+    let first = c.window().await.expect("this window");
+    let second = c.new_window(true).await.expect("a second tab").handle;
+    c.switch_to_window(second)
+        .await
+        .expect("switch to the second tab");
+    c.goto(base).await.expect("open the dashboard again");
+    click(c, "#nav-print").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"]')?.dataset.activity === 'aborted'",
+        20,
+        "the board's state in the second tab",
+    )
+    .await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"home\"]").await;
+    let refused = wait_for(c, "document.getElementById('toast').textContent.includes('another tab') && document.getElementById('toast').textContent", 20, "the second tab refused").await;
+    eprintln!("second tab: {refused}");
+    assert!(!js(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .take').hidden"
+    )
+    .await
+    .as_bool()
+    .unwrap_or(true));
+    shot(c, "second-tab.png").await;
+    click(c, ".board[data-board=\"0\"] .take").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .take').hidden",
+        20,
+        "control taken",
+    )
+    .await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"home\"]").await;
+    wait_for(
+        c,
+        "document.getElementById('toast').textContent === 'homing'",
+        20,
+        "homing ordered from the second tab",
+    )
+    .await;
+    c.close_window().await.expect("close the second tab");
+    c.switch_to_window(first)
+        .await
+        .expect("back to the first tab");
 }

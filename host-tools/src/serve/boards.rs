@@ -159,7 +159,7 @@ pub enum Order {
 pub struct Board {
     /// Number.
     pub id: usize,
-    orders: Mutex<mpsc::Sender<(Order, tokio::sync::oneshot::Sender<Result<String, String>>)>>,
+    orders: Mutex<mpsc::Sender<(Order, Reply)>>,
     /// The latest view.
     pub view: tokio::sync::watch::Receiver<View>,
     /// The tab that commands it (set by its last accepted order).
@@ -476,9 +476,10 @@ impl Worker {
             }
             Order::Abort => {
                 let c = self.client()?;
+                let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
                 c.command(&Request::Abort).map_err(|e| e.to_string())?;
                 c.sleep(Duration::from_millis(5));
-                if let Some(cur) = self.current.as_mut() {
+                if let (Some(cur), true) = (self.current.as_mut(), printing) {
                     cur.aborted = true;
                 }
                 let Some(c) = self.client.as_mut() else {

@@ -624,3 +624,156 @@ pub fn figures(s: &Sliced, config: &Config) -> Figures {
         commands: s.commands.len(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seed() -> &'static str {
+        BUNDLED[0].1
+    }
+
+    fn edit(path: &str, raw: &str) -> Vec<Field> {
+        vec![Field {
+            path: path.into(),
+            raw: raw.into(),
+        }]
+    }
+
+    #[test]
+    fn bundled_configs_check_with_derived_figures() {
+        for (name, text) in BUNDLED {
+            let c = check(text).unwrap_or_else(|e| panic!("{name}: {}", e.error));
+            assert!(c.fields.len() > 10, "{name}: {} fields", c.fields.len());
+        }
+        let c = check(seed()).expect("seed config");
+        let s = c.derived.figures.iter().find(|f| f.0 == "bead section S");
+        assert_eq!(s.map(|f| f.1.as_str()), Some("0.4800 mm²"));
+        assert!(c
+            .fields
+            .iter()
+            .any(|f| f.path == "inlet[1].pressure_kpa" && f.raw == "\"auto\""));
+    }
+
+    #[test]
+    fn a_validation_error_names_its_field() {
+        let text = apply(seed(), &edit("channel.line_pitch_mm", "-1")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.line_pitch_mm"),
+            "{}",
+            e.error
+        );
+        assert!(e.error.contains("must not be negative"), "{}", e.error);
+        // One element of a list: the field is the list.
+        let text = apply(
+            seed(),
+            &edit("motion.max_accel_mm_s2", "[2000.0, -5.0, 200.0]"),
+        )
+        .expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("motion.max_accel_mm_s2"),
+            "{}",
+            e.error
+        );
+    }
+
+    #[test]
+    fn a_wrong_type_or_no_value_names_its_field() {
+        let text = apply(seed(), &edit("channel.layer_height_mm", "\"thick\"")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.layer_height_mm"),
+            "{}",
+            e.error
+        );
+        let e = apply(seed(), &edit("channel.layer_height_mm", "0.6 mm"))
+            .err()
+            .expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.layer_height_mm"),
+            "{}",
+            e.error
+        );
+        let e = apply(seed(), &edit("inlet[1].material", "\"x"))
+            .err()
+            .expect("refused");
+        assert_eq!(e.field.as_deref(), Some("inlet[1].material"), "{}", e.error);
+        let e = apply(seed(), &edit("inlet[7].material", "\"x\""))
+            .err()
+            .expect("refused");
+        assert!(e.error.contains("no such field"), "{}", e.error);
+        let text =
+            apply(seed(), &edit("inlet[1].valve_open_delay_ms", "\"soon\"")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("inlet[1].valve_open_delay_ms"),
+            "{}",
+            e.error
+        );
+    }
+
+    #[test]
+    fn edits_round_trip() {
+        let text = apply(seed(), &edit("motion.print_speed_mm_s", "12.5")).expect("applies");
+        let c = check(&text).expect("valid");
+        assert_eq!(c.config.motion.print_speed_mm_s, 12.5);
+        let f = c
+            .fields
+            .iter()
+            .find(|f| f.path == "motion.print_speed_mm_s");
+        assert_eq!(f.map(|f| f.raw.as_str()), Some("12.5"));
+    }
+
+    #[test]
+    fn toolpath_groups_runs_by_layer_and_material() {
+        let cmds = [
+            Command::Travel {
+                x: 1000,
+                y: 1000,
+                z: 800,
+            },
+            Command::Print {
+                dx: 2000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 2000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 0,
+                dy: 1000,
+                material: 1,
+            },
+            Command::Travel {
+                x: 0,
+                y: 0,
+                z: 1400,
+            },
+            Command::Print {
+                dx: 500,
+                dy: 0,
+                material: 1,
+            },
+            Command::End,
+        ];
+        let t = toolpath(&cmds, [0, 0, 800], 0.8);
+        let kinds: Vec<(usize, i32)> = t.paths.iter().map(|p| (p.l, p.m)).collect();
+        assert_eq!(kinds, [(0, -1), (0, 0), (0, 1), (1, -1), (1, 1)]);
+        assert_eq!(t.paths[1].p, [1.0, 1.0, 3.0, 1.0, 5.0, 1.0]);
+        assert_eq!(t.starts, [0, 1, 3, 4, 5]);
+        assert_eq!(t.ends, [1, 3, 4, 5, 6]);
+        assert_eq!(t.bounds, [0.0, 0.0, 5.0, 2.0]);
+        assert_eq!(t.layers, 2);
+        assert!(!t.simplified);
+    }
+}

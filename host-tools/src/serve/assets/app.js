@@ -208,7 +208,7 @@ function upload(path, form, bar) {
       try { body = JSON.parse(x.responseText); } catch (_) { body = null; }
       if (x.status >= 200 && x.status < 300 && body) return resolve(body);
       let msg = body && body.error ? body.error : x.responseText || x.statusText;
-      if (x.status === 413) msg = `the upload is larger than the ${app.info.max_upload_mb} MiB this dashboard accepts`;
+      if (x.status === 413) msg = `the upload is over this dashboard's ${app.info.max_upload_mb} MiB limit; use the command line (dollop slice) for bigger files`;
       const err = new Error(msg);
       if (body) err.field = body.field;
       reject(err);
