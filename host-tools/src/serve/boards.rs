@@ -669,3 +669,95 @@ impl Worker {
         self.publish();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serve::design;
+
+    fn chessboard() -> Arc<JobEntry> {
+        let checked = design::check(design::BUNDLED[0].1).expect("config");
+        let uploads = [design::Upload {
+            name: "chessboard.png".into(),
+            bytes: design::DESIGNS[1].1.to_vec(),
+        }];
+        let form = design::SliceForm {
+            width_mm: Some(8.0),
+            ..Default::default()
+        };
+        let sliced = design::slice(&uploads, &checked.config, &form).expect("slices");
+        let toolpath = design::toolpath(&sliced.commands, sliced.header.start_um, 0.8);
+        let figures = design::figures(&sliced, &checked.config);
+        Arc::new(JobEntry {
+            id: 7,
+            config: checked.config,
+            config_text: checked.text,
+            sliced,
+            toolpath,
+            figures,
+        })
+    }
+
+    fn worker(speed: f64) -> Worker {
+        let (vtx, _vrx) = tokio::sync::watch::channel(View::default());
+        let mut w = Worker::new(None, speed, View::default(), vtx);
+        w.connect();
+        assert!(w.view.connected, "{:?}", w.view.message);
+        w
+    }
+
+    #[test]
+    fn a_board_gone_mid_upload_keeps_the_job_queued() {
+        let mut w = worker(50.0);
+        if let Some(Link::Sim(s)) = w.client.as_mut().map(|c| c.transport_mut()) {
+            let m = s.mem();
+            m.dead_after = Some(m.stats.host_frames + 12);
+        }
+        w.queue.push(chessboard());
+        let e = w.start_next().expect_err("the upload fails");
+        assert!(e.contains("stays in the queue"), "{e}");
+        assert_eq!(w.queue.len(), 1);
+        assert!(!w.view.connected);
+        assert!(
+            w.view
+                .message
+                .as_deref()
+                .is_some_and(|m| m.contains("Lost the board")),
+            "{:?}",
+            w.view.message
+        );
+    }
+
+    #[test]
+    fn a_job_prints_to_the_end_and_orders_are_checked() {
+        let mut w = worker(200.0);
+        let job = chessboard();
+        assert_eq!(
+            w.handle(Order::Jog(Axis::X, f64::NAN)).err().as_deref(),
+            Some("jog distance NaN mm is not a plausible move")
+        );
+        assert!(w.handle(Order::Valve(0, 60.0)).is_err());
+        assert!(w
+            .handle(Order::Home)
+            .err()
+            .is_some_and(|e| e.contains("no machine config")));
+        w.handle(Order::Send(job)).expect("starts");
+        assert!(w.queue.is_empty());
+        let start = Instant::now();
+        while w.view.progress < 1.0 {
+            assert!(
+                start.elapsed() < Duration::from_secs(120),
+                "stuck at {} ({})",
+                w.view.progress,
+                w.view.activity
+            );
+            w.tick();
+        }
+        assert!(
+            w.view.activity.starts_with("finished"),
+            "{}",
+            w.view.activity
+        );
+        assert_eq!(w.view.eta_s, Some(0.0));
+    }
+}

@@ -691,22 +691,16 @@ mod tests {
             "{}",
             e.error
         );
-        let e = apply(seed(), &edit("channel.layer_height_mm", "0.6 mm"))
-            .err()
-            .expect("refused");
+        let e = apply(seed(), &edit("channel.layer_height_mm", "0.6 mm")).expect_err("refused");
         assert_eq!(
             e.field.as_deref(),
             Some("channel.layer_height_mm"),
             "{}",
             e.error
         );
-        let e = apply(seed(), &edit("inlet[1].material", "\"x"))
-            .err()
-            .expect("refused");
+        let e = apply(seed(), &edit("inlet[1].material", "\"x")).expect_err("refused");
         assert_eq!(e.field.as_deref(), Some("inlet[1].material"), "{}", e.error);
-        let e = apply(seed(), &edit("inlet[7].material", "\"x\""))
-            .err()
-            .expect("refused");
+        let e = apply(seed(), &edit("inlet[7].material", "\"x\"")).expect_err("refused");
         assert!(e.error.contains("no such field"), "{}", e.error);
         let text =
             apply(seed(), &edit("inlet[1].valve_open_delay_ms", "\"soon\"")).expect("applies");

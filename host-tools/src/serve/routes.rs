@@ -313,7 +313,13 @@ async fn sim_start(State(st): St, Path(id): Path<u64>) -> ApiResult<Json<serde_j
     };
     std::thread::Builder::new()
         .name(format!("sim-{sim}"))
-        .spawn(move || simulate::simulate(&run, &e.config, &job))
+        .spawn(move || {
+            // A panic in the run must not leave the page waiting for ever.
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate::simulate(&run, &e.config, &job)));
+            if r.is_err() {
+                *lock(&run.state) = simulate::SimState::Failed("the simulation stopped on an internal error (a bug: please report it with the design and config)".into());
+            }
+        })
         .map_err(|e| ApiError::internal(format!("cannot start the simulation: {e}")))?;
     Ok(Json(json!({ "sim": sim })))
 }
