@@ -3,7 +3,8 @@
 //! corrupt upload refused, a config error shown at its field, a bundled design uploaded
 //! through the file picker and sliced with its preview drawn, a simulation with its report
 //! and heatmap, a print on the simulated board followed to 100 % with the status pushed
-//! live, and pause, resume and abort. Saves screenshots of the main pages under the target
+//! live, pause, resume and abort, a second tab refused until it takes control, and a
+//! rheology calibration applied to the config. Saves screenshots of the main pages under the target
 //! directory (`tmp/serve-screenshots`). Without chromedriver it says it skipped, except in
 //! CI (`CI=true`), where that is a failure.
 
@@ -412,13 +413,9 @@ async fn pages(c: &Client, base: &str) {
     assert_eq!(p_paused, p_later, "progress moved while paused");
     shot(c, "paused.png").await;
     click(c, ".board[data-board=\"0\"] button[data-action=\"resume\"]").await;
-    wait_for(
-        c,
-        "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'printing'",
-        30,
-        "the print resumed",
-    )
-    .await;
+    // Resumed, it goes on from where it paused (the pause ended a bead, so what is left
+    // may be short): it runs to the end.
+    wait_for(c, &format!("document.querySelector('.board[data-board=\"0\"]').dataset.activity !== 'paused' && Number(document.querySelector('.board[data-board=\"0\"]').dataset.progress) > {p_paused}"), 30, "the print resumed").await;
     // A bead ends the pause: the chessboard is two long beads, so the print may be near
     // its end now. Let it finish, then abort a third run early.
     wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity.startsWith('finished')", 60, "the resumed print finished").await;
@@ -487,4 +484,28 @@ async fn pages(c: &Client, base: &str) {
     c.switch_to_window(first)
         .await
         .expect("back to the first tab");
+
+    // Calibrate: the bundled puree flow curve is fitted, and its fragment applied to
+    // inlet 0 of the config in the editor.
+    click(c, "#nav-calibrate").await;
+    let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/calibration/rheology-puree.csv");
+    c.find(Locator::Id("cal-file"))
+        .await
+        .expect("CSV picker")
+        .send_keys(&csv.display().to_string())
+        .await
+        .expect("choosing the CSV");
+    click(c, "#cal-run").await;
+    wait_for(c, "document.getElementById('cal-report').textContent.includes('power law') && document.getElementById('cal-plot').complete && document.getElementById('cal-plot').naturalWidth > 100", 60, "the rheology fits and plot").await;
+    let fragment = js(c, "document.getElementById('cal-fragment').textContent").await;
+    assert!(
+        fragment
+            .as_str()
+            .unwrap_or_default()
+            .contains("rheology = "),
+        "{fragment}"
+    );
+    shot(c, "calibrate.png").await;
+    click(c, "#cal-apply").await;
+    wait_for(c, "document.querySelector('.field[data-path=\"inlet[0].rheology\"] input')?.value.includes('power_law')", 20, "the fragment in the config's inlet 0").await;
 }

@@ -2,11 +2,12 @@
 //! (slicer, dollop-sim, the link client). This file parses the options, builds the shared
 //! state, binds the listener and runs axum on tokio; the pages are plain HTML/CSS/JS
 //! compiled into the binary (`assets`), the HTTP API is `routes`, the work behind it is
-//! `design` (configs, uploads, slicing), `simulate` and `boards` (one worker thread per
+//! `design` (configs, uploads, slicing), `simulate`, `calibrate` and `boards` (one worker thread per
 //! board, the simulated board among them through `simlink`).
 
 pub mod assets;
 pub mod boards;
+pub mod calibrate;
 pub mod design;
 pub mod error;
 pub mod routes;

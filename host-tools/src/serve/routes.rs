@@ -41,6 +41,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/sims/{id}", get(sim_get))
         .route("/api/sims/{id}/events", get(sim_events))
         .route("/api/sims/{id}/{file}", get(sim_file))
+        .route("/api/calibrate/rheology", post(calibrate_rheology))
         .route("/api/boards/events", get(board_events))
         .route("/api/boards/{id}/{action}", post(board_action))
         .fallback(|| async { ApiError::missing("no such page") })
@@ -516,4 +517,23 @@ async fn board_action(
         Ok(m) => Ok(Json(json!({ "message": m }))),
         Err(m) => Err(ApiError::conflict(m)),
     }
+}
+
+async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrate::Shown>> {
+    let mut data = None;
+    let mut kind = String::new();
+    while let Some(field) = mp.next_field().await? {
+        match field.name().unwrap_or("") {
+            "data" => {
+                let name = field.file_name().unwrap_or("data.csv").to_string();
+                data = Some((name, field.bytes().await?.to_vec()));
+            }
+            "kind" => kind = field.text().await?,
+            _ => {}
+        }
+    }
+    let (name, bytes) = data.ok_or_else(|| ApiError::bad("choose a measurement CSV"))?;
+    Ok(Json(
+        blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
+    ))
 }

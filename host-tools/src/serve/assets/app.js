@@ -648,6 +648,44 @@ function followBoards() {
   };
 }
 
+// ---------------------------------------------------------------- calibrate
+let calFragment = null;
+$("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
+$("cal-run").addEventListener("click", async () => {
+  showError("cal-error", "");
+  const f = $("cal-file").files[0];
+  if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+  const form = new FormData();
+  form.append("data", f, f.name);
+  form.append("kind", $("cal-kind").value);
+  try {
+    const r = await api("/api/calibrate/rheology", { method: "POST", body: form });
+    $("cal-report").textContent = r.report;
+    calFragment = r.fragment;
+    $("cal-fragment").textContent = r.fragment || "(no model the core accepts: see the verdicts)";
+    $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
+  } catch (e) {
+    showError("cal-error", e.message);
+  }
+});
+// The fragment's `key = value` lines become edits of that inlet in the config editor.
+$("cal-apply").addEventListener("click", async () => {
+  if (!calFragment || !app.config) return showError("cal-error", "Fit a measurement first.");
+  const inlet = $("cal-inlet").value;
+  const edits = calFragment.split("\n").filter((l) => l.includes("=") && !l.trim().startsWith("#")).map((l) => {
+    const i = l.indexOf("=");
+    return { path: `inlet[${inlet}].${l.slice(0, i).trim()}`, raw: l.slice(i + 1).trim() };
+  });
+  try {
+    const c = await postJson("/api/config/check", { text: app.config.text, edits });
+    renderConfig(c);
+    clearFieldErrors();
+    toast(`Applied to inlet ${inlet}; the config on the Design page now uses it.`);
+  } catch (e) {
+    showError("cal-error", e.message);
+  }
+});
+
 // ---------------------------------------------------------------- start
 (async function start() {
   try {
