@@ -150,6 +150,7 @@ async fn run() {
         demo: false,
         sim_speed: 3.0,
         no_usb: true,
+        sim_boards: 2,
     })
     .await
     .expect("server starts");
@@ -338,6 +339,8 @@ async fn pages(c: &Client, base: &str) {
     // Print on the simulated board: the status is pushed live and reaches 100 %.
     click(c, "#nav-print").await;
     wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"0\"]')?.dataset.activity)", 30, "the simulated board, connected").await;
+    // A second simulated board: listed with its own state and an empty queue.
+    wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"1\"]')?.dataset.activity)", 30, "the second simulated board").await;
     click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
     let t = Instant::now();
     let mut progress_seen = std::collections::BTreeSet::new();

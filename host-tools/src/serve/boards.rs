@@ -181,17 +181,18 @@ impl Board {
     }
 }
 
-/// Starts the workers: the simulated board first, then `--board` ports (or the USB board
+/// Starts the workers: the simulated boards first, then `--board` ports (or the USB board
 /// found by VID/PID).
 pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
     let mut out = Vec::new();
-    out.push(spawn(
-        0,
-        "simulated board".into(),
-        "simulated".into(),
-        None,
-        a.sim_speed,
-    ));
+    for i in 0..a.sim_boards.max(1) {
+        let name = if a.sim_boards > 1 {
+            format!("simulated board {}", i + 1)
+        } else {
+            "simulated board".into()
+        };
+        out.push(spawn(i, name, "simulated".into(), None, a.sim_speed));
+    }
     let mut ports = a.boards.clone();
     if ports.is_empty() && !a.no_usb {
         if let Ok(p) = serial::detect() {

@@ -726,6 +726,25 @@ mod tests {
     }
 
     #[test]
+    fn one_stl_per_material_slices() {
+        let c = check(seed()).expect("config");
+        let uploads: Vec<Upload> = DESIGNS[2..]
+            .iter()
+            .map(|(n, b)| Upload {
+                name: n.to_string(),
+                bytes: b.to_vec(),
+            })
+            .collect();
+        let form = SliceForm::default();
+        let s = slice(&uploads, &c.config, &form).expect("slices");
+        assert_eq!(s.name, "cube-shell.stl + cube-ball.stl");
+        let f = figures(&s, &c.config);
+        assert!(f.segments > 10 && f.switches > 0, "{f:?}");
+        let e = slice(&[], &c.config, &form).err().map(|e| e.error);
+        assert!(e.is_some_and(|e| e.contains("choose a design")));
+    }
+
+    #[test]
     fn toolpath_groups_runs_by_layer_and_material() {
         let cmds = [
             Command::Travel {

@@ -52,6 +52,9 @@ pub struct Args {
     /// Do not look for USB boards (only --board ports and the simulated board).
     #[arg(long)]
     pub no_usb: bool,
+    /// Simulated boards to list (a lab's printers without the printers), 1 to 8.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub sim_boards: usize,
 }
 
 /// A running server: where it listens, and its state (tests look inside).
@@ -66,6 +69,9 @@ pub struct Running {
 pub async fn start(a: Args) -> anyhow::Result<Running> {
     if !(a.sim_speed.is_finite() && (0.1..=1000.0).contains(&a.sim_speed)) {
         anyhow::bail!("--sim-speed {} must be between 0.1 and 1000", a.sim_speed);
+    }
+    if !(1..=8).contains(&a.sim_boards) {
+        anyhow::bail!("--sim-boards {} must be between 1 and 8", a.sim_boards);
     }
     let state = Arc::new(state::AppState::new(&a)?);
     let listener = tokio::net::TcpListener::bind(a.listen)
