@@ -5,4 +5,5 @@ pub mod calibrate;
 pub mod cmd;
 pub mod inspect;
 pub mod link;
+pub mod serve;
 pub mod slicer;

@@ -42,6 +42,8 @@ enum Command {
     /// Measure a printed job from a top-view photo: pattern error, boundary offsets, bead
     /// width; --suggest turns them into config corrections.
     Inspect(cmd::inspect::Args),
+    /// Start the web dashboard (design, simulate, print, on this computer's browser).
+    Serve(dollop_host::serve::Args),
     /// Print performance figures (slicing, voxelizing, simulation, link, job size).
     Bench(cmd::bench::Args),
 }
@@ -63,6 +65,7 @@ fn main() -> ExitCode {
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Serve(a) => dollop_host::serve::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

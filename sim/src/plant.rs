@@ -229,6 +229,11 @@ impl Plant {
             .fold(0.0, f64::max)
     }
 
+    /// Pressure in inlet `i`'s line now, Pa (None past the last inlet).
+    pub fn line_pa(&self, i: usize) -> Option<f64> {
+        self.lines.get(i).map(|l| l.p_at(self.t))
+    }
+
     /// Valve command at the current time: acts after the valve's dead time.
     pub fn command(&mut self, inlet: usize, open: bool) {
         let t = self.t;

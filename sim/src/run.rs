@@ -59,6 +59,8 @@ pub struct Cycle<'a, R> {
     pub landed_volume: f64,
     /// Material landing at the end of the cycle.
     pub landing: u8,
+    /// The reference plant, when it meters the run (its line pressures, for plots).
+    pub plant: Option<&'a Plant>,
 }
 
 /// The outcome of a run.
@@ -295,6 +297,7 @@ pub fn run_with_plant<R: Real>(
             outputs: &out,
             landed_volume,
             landing,
+            plant: plant.as_ref(),
         });
         cycle += 1;
         if matches!(report.state, RunState::Done | RunState::Aborted) {

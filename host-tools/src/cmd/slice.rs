@@ -137,7 +137,8 @@ pub struct Args {
 }
 
 impl Args {
-    fn options(&self) -> Result<SliceOptions, SliceError> {
+    /// The slicer options these arguments ask for, checked (the dashboard reuses this).
+    pub fn options(&self) -> Result<SliceOptions, SliceError> {
         let opt = |m: String| SliceError::Option(m);
         let classify = match self.palette.as_deref() {
             None => Classify::Threshold(self.threshold),

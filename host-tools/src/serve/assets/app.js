@@ -1,0 +1,711 @@
+// dollop dashboard: plain JavaScript, no build step. Talks to the server's /api (JSON,
+// multipart uploads, server-sent events) and draws the toolpath, plots and boards.
+"use strict";
+
+const COLOURS = ["#7a4824", "#ecbe46", "#3a7bd5", "#d64545", "#46a05a", "#8c50aa", "#f08228", "#787878"];
+const $ = (id) => document.getElementById(id);
+const el = (tag, attrs = {}, ...kids) => {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") e.className = v;
+    else if (k.startsWith("on")) e.addEventListener(k.slice(2), v);
+    else e.setAttribute(k, v);
+  }
+  for (const k of kids) e.append(k);
+  return e;
+};
+
+// Which tab this is (one tab commands a board at a time).
+const TAB = sessionStorage.getItem("dollop-tab") || (Math.random().toString(36).slice(2) + Date.now().toString(36));
+sessionStorage.setItem("dollop-tab", TAB);
+
+const app = {
+  info: null,
+  files: [],          // File objects chosen for the design
+  config: null,       // {text, fields, derived}
+  configOriginal: {}, // path -> raw as loaded, to find edits
+  job: null,          // {id, figures, toolpath, materials}
+  sim: null,          // sim id
+  jobs: {},           // id -> toolpath (for boards)
+};
+
+function toast(msg, bad) {
+  const t = $("toast");
+  t.textContent = msg;
+  t.className = bad ? "bad" : "";
+  t.hidden = false;
+  clearTimeout(toast.timer);
+  toast.timer = setTimeout(() => (t.hidden = true), bad ? 9000 : 4000);
+}
+
+function showError(id, msg) {
+  const e = $(id);
+  e.textContent = msg || "";
+  e.hidden = !msg;
+}
+
+async function api(path, opts = {}) {
+  let r;
+  try {
+    r = await fetch(path, opts);
+  } catch (e) {
+    throw new Error("the dashboard server does not answer (is dollop serve still running?)");
+  }
+  const type = r.headers.get("content-type") || "";
+  const body = type.includes("json") ? await r.json() : await r.text();
+  if (!r.ok) {
+    const err = new Error(typeof body === "object" ? body.error : (r.status === 413 ? `the upload is larger than the ${app.info ? app.info.max_upload_mb : 64} MiB limit` : body || r.statusText));
+    err.field = typeof body === "object" ? body.field : undefined;
+    err.status = r.status;
+    throw err;
+  }
+  return body;
+}
+
+const postJson = (path, obj) => api(path, { method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(obj) });
+
+// ---------------------------------------------------------------- navigation
+function showPage(name) {
+  for (const b of document.querySelectorAll("nav .tab")) b.classList.toggle("active", b.dataset.page === name);
+  for (const p of document.querySelectorAll(".page")) p.hidden = p.id !== "page-" + name;
+  if (name === "design") drawPreview();
+}
+for (const b of document.querySelectorAll("nav .tab")) b.addEventListener("click", () => showPage(b.dataset.page));
+
+// ---------------------------------------------------------------- design files
+function setFiles(list) {
+  app.files = Array.from(list);
+  const ul = $("design-list");
+  ul.replaceChildren(...app.files.map((f, i) => el("li", {}, `${f.name} (${(f.size / 1024).toFixed(1)} KiB)` + (app.files.length > 1 ? ` → inlet ${i}` : ""))));
+}
+$("design-files").addEventListener("change", (e) => setFiles(e.target.files));
+const drop = $("drop");
+drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
+drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+drop.addEventListener("drop", (e) => {
+  e.preventDefault();
+  drop.classList.remove("over");
+  if (e.dataTransfer.files.length) setFiles(e.dataTransfer.files);
+});
+
+async function useBundled(names) {
+  const files = [];
+  for (const n of names) {
+    const i = app.info.designs.indexOf(n);
+    const r = await fetch(`/api/designs/${i}`);
+    files.push(new File([await r.blob()], n));
+  }
+  setFiles(files);
+}
+
+// ---------------------------------------------------------------- config
+function renderConfig(c) {
+  app.config = c;
+  app.configOriginal = {};
+  const box = $("config-fields");
+  box.replaceChildren();
+  for (const f of c.fields) {
+    app.configOriginal[f.path] = f.raw;
+    const input = el("input", { name: f.path, value: f.raw, id: "cfg-" + f.path });
+    box.append(el("div", { class: "field", "data-path": f.path }, el("label", { for: "cfg-" + f.path }, f.path), input, el("div", { class: "field-error" })));
+  }
+  renderDerived(c.derived);
+}
+
+function renderDerived(figs) {
+  $("config-derived").replaceChildren(...figs.map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", {}, v))));
+}
+
+function clearFieldErrors() {
+  for (const f of document.querySelectorAll(".field")) {
+    f.classList.remove("has-error");
+    f.querySelector(".field-error").textContent = "";
+  }
+  showError("config-error", "");
+}
+
+function showConfigError(err) {
+  clearFieldErrors();
+  const row = err.field && document.querySelector(`.field[data-path="${CSS.escape(err.field)}"]`);
+  if (row) {
+    row.classList.add("has-error");
+    row.querySelector(".field-error").textContent = err.message;
+    $("config-details").open = true;
+    row.scrollIntoView({ block: "nearest" });
+  }
+  showError("config-error", "Config: " + err.message);
+  $("config-derived").replaceChildren();
+}
+
+function edits() {
+  const out = [];
+  for (const input of document.querySelectorAll("#config-fields input")) {
+    if (input.value !== app.configOriginal[input.name]) out.push({ path: input.name, raw: input.value });
+  }
+  return out;
+}
+
+// Checks the config with the edits; returns its text, or null (errors shown).
+async function checkConfig() {
+  if (!app.config) return null;
+  try {
+    const c = await postJson("/api/config/check", { text: app.config.text, edits: edits() });
+    const keep = edits();
+    clearFieldErrors();
+    renderDerived(c.derived);
+    if (keep.length) {
+      // The checked text becomes the base; the inputs keep what was typed.
+      renderConfig(c);
+    }
+    app.config = c;
+    return c.text;
+  } catch (e) {
+    showConfigError(e);
+    return null;
+  }
+}
+
+async function loadConfig(i) {
+  try {
+    renderConfig(await api(`/api/configs/${i}`));
+    clearFieldErrors();
+  } catch (e) {
+    showConfigError(e);
+  }
+}
+$("config-select").addEventListener("change", (e) => loadConfig(e.target.value));
+$("config-check").addEventListener("click", async () => {
+  if (await checkConfig()) toast("The config is valid.");
+});
+
+// ---------------------------------------------------------------- slicing
+function sliceOptions() {
+  const o = {};
+  const num = ["width_mm", "height_mm", "layers", "threshold", "background_tolerance", "prime_mm", "min_run_mm", "connect_mm"];
+  for (const k of num) {
+    const v = $("opt-" + k).value.trim();
+    if (v !== "") o[k] = Number(v);
+  }
+  for (const k of ["rotate", "mirror", "palette", "background", "origin"]) {
+    const v = $("opt-" + k).value.trim();
+    if (v !== "") o[k] = v;
+  }
+  o.invert = $("opt-invert").checked;
+  return o;
+}
+
+// Posts a multipart form with upload progress (fetch has none).
+function upload(path, form, bar) {
+  return new Promise((resolve, reject) => {
+    const x = new XMLHttpRequest();
+    x.open("POST", path);
+    bar.hidden = false;
+    bar.value = 0;
+    x.upload.onprogress = (e) => { if (e.lengthComputable) bar.value = e.loaded / e.total; };
+    x.onload = () => {
+      bar.hidden = true;
+      let body = null;
+      try { body = JSON.parse(x.responseText); } catch (_) { body = null; }
+      if (x.status >= 200 && x.status < 300 && body) return resolve(body);
+      let msg = body && body.error ? body.error : x.responseText || x.statusText;
+      if (x.status === 413) msg = `the upload is over this dashboard's ${app.info.max_upload_mb} MiB limit; use the command line (dollop slice) for bigger files`;
+      const err = new Error(msg);
+      if (body) err.field = body.field;
+      reject(err);
+    };
+    x.onerror = () => { bar.hidden = true; reject(new Error("the upload did not reach the server (connection lost, or the file is over the size limit)")); };
+    x.send(form);
+  });
+}
+
+$("slice").addEventListener("click", async () => {
+  showError("slice-error", "");
+  if (!app.files.length) return showError("slice-error", "Choose a design first: an image, one STL per material, or a 3MF.");
+  const text = await checkConfig();
+  if (!text) return showError("slice-error", "Fix the config first (see the field marked in red).");
+  const form = new FormData();
+  for (const f of app.files) form.append("design", f, f.name);
+  form.append("config", text);
+  form.append("options", JSON.stringify(sliceOptions()));
+  const b = $("slice");
+  b.disabled = true;
+  b.textContent = "Slicing…";
+  try {
+    setJob(await upload("/api/slice", form, $("upload-progress")));
+    toast("Sliced.");
+  } catch (e) {
+    if (e.field) showConfigError(e);
+    showError("slice-error", e.message);
+  } finally {
+    b.disabled = false;
+    b.textContent = "Slice";
+  }
+});
+
+function fmtTime(s) {
+  if (s == null || !isFinite(s)) return "–";
+  s = Math.round(s);
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), r = s % 60;
+  return h ? `${h} h ${m} min` : m ? `${m} min ${r} s` : `${r} s`;
+}
+
+function setJob(job) {
+  app.job = job;
+  app.jobs[job.id] = job;
+  app.sim = null;
+  const f = job.figures;
+  $("job-name").textContent = `job ${job.id}: ${f.name}`;
+  $("job-figures").replaceChildren(...[
+    ["design", f.name],
+    ["size", `${f.size_mm[0].toFixed(1)} × ${f.size_mm[1].toFixed(1)} mm, ${f.layers} layer(s)`],
+    ["print segments", f.segments],
+    ["material switches", f.switches],
+    ["beads", f.beads],
+    ["printed / travel", `${f.print_mm.toFixed(0)} mm / ${f.travel_mm.toFixed(0)} mm`],
+    ["job file", `${f.job_bytes} bytes`],
+    ["estimated print time", fmtTime(f.est_time_s) + " (lengths over speeds; Simulate gives the exact time)"],
+  ].map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", { class: "fig-" + k.replace(/\W+/g, "-") }, String(v)))));
+  const sel = $("layer-select");
+  sel.replaceChildren(el("option", { value: "all" }, "all"));
+  for (let l = 0; l < job.toolpath.layers; l++) sel.append(el("option", { value: String(l) }, String(l)));
+  $("legend").replaceChildren(...job.materials.map((m, i) => el("span", {}, el("i", { style: `background:${COLOURS[i % 8]}` }), `${i}: ${m}`)));
+  $("job-downloads").replaceChildren(
+    el("a", { href: `/api/jobs/${job.id}/job.dlp`, id: "dl-job" }, "job (.dlp)"),
+    el("a", { href: `/api/jobs/${job.id}/job.gcode`, id: "dl-gcode" }, "G-code"),
+    el("a", { href: `/api/jobs/${job.id}/preview.png` }, "toolpath picture"),
+    el("a", { href: `/api/jobs/${job.id}/config.toml` }, "machine config"),
+  );
+  view.fit = true;
+  drawPreview();
+  $("sim-report").textContent = "";
+  $("heatmap").removeAttribute("src");
+  $("sim-progress").value = 0;
+  $("sim-status").textContent = "";
+  renderBoards(lastBoards);
+}
+
+// ---------------------------------------------------------------- toolpath drawing
+const view = { scale: 1, ox: 0, oy: 0, fit: true };
+
+function fitView(canvas, tp, v) {
+  const [x0, y0, x1, y1] = tp.bounds;
+  const m = tp.bead_mm * 2 + 1;
+  const w = x1 - x0 + 2 * m, h = y1 - y0 + 2 * m;
+  v.scale = Math.min(canvas.width / w, canvas.height / h);
+  v.ox = (canvas.width - (x1 - x0) * v.scale) / 2 - x0 * v.scale;
+  v.oy = (canvas.height + (y1 - y0) * v.scale) / 2 + y0 * v.scale;
+  v.fit = false;
+}
+
+// Draws toolpath `tp` on `canvas`; layer filter; `done` = commands finished (print view).
+function drawToolpath(canvas, tp, v, layer, done) {
+  const g = canvas.getContext("2d");
+  g.setTransform(1, 0, 0, 1, 0, 0);
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  if (!tp) return;
+  if (v.fit) fitView(canvas, tp, v);
+  const X = (x) => x * v.scale + v.ox, Y = (y) => v.oy - y * v.scale;
+  g.lineCap = "round";
+  g.lineJoin = "round";
+  const bead = Math.max(tp.bead_mm * v.scale, 1);
+  for (let pass = 0; pass < 2; pass++) {
+    tp.paths.forEach((p, i) => {
+      if (layer !== "all" && p.l !== Number(layer)) return;
+      const travel = p.m < 0;
+      if ((pass === 0) === travel) return; // beads first, travel dashed on top
+      const finished = done == null || tp.ends[i] <= done;
+      const started = done == null || tp.starts[i] < done;
+      g.beginPath();
+      g.moveTo(X(p.p[0]), Y(p.p[1]));
+      for (let k = 2; k < p.p.length; k += 2) g.lineTo(X(p.p[k]), Y(p.p[k + 1]));
+      if (travel) {
+        g.setLineDash([4, 4]);
+        g.lineWidth = 1;
+        g.strokeStyle = done == null || finished ? "rgba(40,40,40,.7)" : "rgba(40,40,40,.15)";
+      } else {
+        g.setLineDash([]);
+        g.lineWidth = bead;
+        g.strokeStyle = COLOURS[p.m % 8];
+        g.globalAlpha = finished || started ? 1 : 0.15;
+      }
+      g.stroke();
+      g.globalAlpha = 1;
+    });
+  }
+  g.setLineDash([]);
+}
+
+function drawPreview() {
+  const c = $("preview");
+  drawToolpath(c, app.job && app.job.toolpath, view, $("layer-select").value, null);
+}
+$("layer-select").addEventListener("change", drawPreview);
+$("zoom-reset").addEventListener("click", () => { view.fit = true; drawPreview(); });
+
+// Wheel zooms about the pointer, drag pans.
+function zoomPan(canvas, v, redraw) {
+  const pos = (e) => {
+    const r = canvas.getBoundingClientRect();
+    return [(e.clientX - r.left) * canvas.width / r.width, (e.clientY - r.top) * canvas.height / r.height];
+  };
+  canvas.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    const [px, py] = pos(e);
+    const k = Math.exp(-e.deltaY * 0.0015);
+    v.ox = px - (px - v.ox) * k;
+    v.oy = py - (py - v.oy) * k;
+    v.scale *= k;
+    redraw();
+  }, { passive: false });
+  let drag = null;
+  canvas.addEventListener("pointerdown", (e) => { drag = pos(e); canvas.setPointerCapture(e.pointerId); });
+  canvas.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const p = pos(e);
+    v.ox += p[0] - drag[0];
+    v.oy += p[1] - drag[1];
+    drag = p;
+    redraw();
+  });
+  canvas.addEventListener("pointerup", () => (drag = null));
+}
+zoomPan($("preview"), view, drawPreview);
+
+// ---------------------------------------------------------------- simulate
+$("simulate").addEventListener("click", async () => {
+  showError("sim-error", "");
+  if (!app.job) return showError("sim-error", "Slice a design first (Design page).");
+  const b = $("simulate");
+  b.disabled = true;
+  $("sim-report").textContent = "";
+  $("heatmap").removeAttribute("src");
+  $("sim-status").textContent = "running…";
+  try {
+    const { sim } = await postJson(`/api/jobs/${app.job.id}/simulate`, {});
+    app.sim = sim;
+    const es = new EventSource(`/api/sims/${sim}/events`);
+    es.addEventListener("progress", (e) => {
+      $("sim-progress").value = Number(e.data);
+      $("sim-status").textContent = `${(Number(e.data) / 10).toFixed(1)} %`;
+    });
+    es.addEventListener("done", async () => {
+      es.close();
+      $("sim-progress").value = 1000;
+      await showSim(sim);
+      b.disabled = false;
+    });
+    es.addEventListener("failed", (e) => {
+      es.close();
+      showError("sim-error", "The simulation failed: " + e.data);
+      $("sim-status").textContent = "";
+      b.disabled = false;
+    });
+    es.onerror = () => {
+      if (es.readyState === EventSource.CLOSED) b.disabled = false;
+    };
+  } catch (e) {
+    showError("sim-error", e.message);
+    b.disabled = false;
+  }
+});
+
+async function showSim(sim) {
+  try {
+    const r = await api(`/api/sims/${sim}`);
+    $("sim-report").textContent = r.report;
+    const f = r.figures;
+    $("sim-status").textContent = `done: ${f.state}, ${fmtTime(f.time_s)} of printing` + (f.fault ? `, fault: ${f.fault}` : "");
+    $("heatmap").src = `/api/sims/${sim}/heatmap.png`;
+    $("sim-downloads").replaceChildren(
+      el("a", { href: `/api/jobs/${app.job.id}/job.dlp` }, "job (.dlp)"),
+      el("a", { href: `/api/jobs/${app.job.id}/job.gcode` }, "G-code"),
+      el("a", { href: `/api/sims/${sim}/trace.csv`, id: "dl-trace" }, "trace (CSV)"),
+      el("a", { href: `/api/sims/${sim}/heatmap.png`, download: `heatmap-${sim}.png` }, "heatmap picture"),
+      el("a", { href: `/api/jobs/${app.job.id}/preview.png` }, "toolpath picture"),
+      el("a", { href: `/api/sims/${sim}/report.txt` }, "report"),
+    );
+    setSeries(r.series);
+  } catch (e) {
+    showError("sim-error", e.message);
+  }
+}
+
+// ---------------------------------------------------------------- plots
+const plot = { series: null, t0: 0, t1: 1 };
+
+function setSeries(s) {
+  plot.series = s;
+  plot.t0 = 0;
+  plot.t1 = s.t.length ? s.t[s.t.length - 1] : 1;
+  drawPlots();
+}
+
+function drawPlot(canvas, title, unit, lines) {
+  const g = canvas.getContext("2d");
+  const W = canvas.width, H = canvas.height, L = 60, R = 10, T = 18, B = 20;
+  g.clearRect(0, 0, W, H);
+  const s = plot.series;
+  if (!s || !s.t.length) return;
+  const { t0, t1 } = plot;
+  let lo = Infinity, hi = -Infinity;
+  for (const ln of lines) for (let i = 0; i < s.t.length; i++) {
+    if (s.t[i] < t0 || s.t[i] > t1) continue;
+    const v = ln.y[i];
+    if (isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  }
+  if (!isFinite(lo)) { lo = 0; hi = 1; }
+  if (hi - lo < 1e-9) { hi = lo + 1; }
+  const X = (t) => L + (t - t0) / (t1 - t0) * (W - L - R);
+  const Y = (v) => H - B - (v - lo) / (hi - lo) * (H - T - B);
+  g.font = "12px sans-serif";
+  g.fillStyle = "#333";
+  g.fillText(`${title} (${unit})`, L, 12);
+  g.fillStyle = "#777";
+  g.fillText(hi.toPrecision(3), 2, T + 8);
+  g.fillText(lo.toPrecision(3), 2, H - B);
+  g.fillText(`${t0.toFixed(2)} s`, L, H - 4);
+  g.fillText(`${t1.toFixed(2)} s`, W - R - 60, H - 4);
+  g.strokeStyle = "#ddd";
+  g.strokeRect(L, T, W - L - R, H - T - B);
+  for (const ln of lines) {
+    g.strokeStyle = ln.colour;
+    g.lineWidth = 1.2;
+    g.beginPath();
+    let first = true;
+    for (let i = 0; i < s.t.length; i++) {
+      if (s.t[i] < t0 && (i + 1 >= s.t.length || s.t[i + 1] < t0)) continue;
+      if (s.t[i] > t1 && i > 0 && s.t[i - 1] > t1) break;
+      const v = ln.y[i];
+      if (!isFinite(v)) continue;
+      if (first) { g.moveTo(X(s.t[i]), Y(v)); first = false; } else g.lineTo(X(s.t[i]), Y(v));
+    }
+    g.stroke();
+  }
+  let x = L + 200;
+  for (const ln of lines) {
+    if (!ln.name) continue;
+    g.fillStyle = ln.colour;
+    g.fillText(ln.name, x, 12);
+    x += g.measureText(ln.name).width + 16;
+  }
+}
+
+function drawPlots() {
+  const s = plot.series;
+  if (!s) return;
+  drawPlot($("plot-speed"), "head speed", "mm/s", [{ y: s.speed, colour: "#2f6f5e" }]);
+  drawPlot($("plot-flow"), "flow", "mm³/s", [{ y: s.flow, colour: "#3a7bd5" }]);
+  drawPlot($("plot-pressure"), "line pressure", "kPa", s.pressure.map((p, i) => ({ y: p, colour: COLOURS[i % 8], name: `${i}: ${s.materials[i]}` })));
+  drawPlot($("plot-valves"), "valves open", "inlet", s.materials.map((m, i) => ({ y: s.valves.map((v) => (v >> i) & 1 ? i + 0.8 : i), colour: COLOURS[i % 8], name: `${i}` })));
+}
+
+for (const c of document.querySelectorAll("canvas.plot")) {
+  const tAt = (e) => {
+    const r = c.getBoundingClientRect();
+    const x = (e.clientX - r.left) * c.width / r.width;
+    return plot.t0 + (x - 60) / (c.width - 70) * (plot.t1 - plot.t0);
+  };
+  c.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    const t = tAt(e), k = Math.exp(e.deltaY * 0.0015);
+    plot.t0 = t - (t - plot.t0) * k;
+    plot.t1 = t + (plot.t1 - t) * k;
+    drawPlots();
+  }, { passive: false });
+  let drag = null;
+  c.addEventListener("pointerdown", (e) => { drag = tAt(e); c.setPointerCapture(e.pointerId); });
+  c.addEventListener("pointermove", (e) => {
+    if (drag == null) return;
+    const d = drag - tAt(e);
+    plot.t0 += d;
+    plot.t1 += d;
+    drawPlots();
+  });
+  c.addEventListener("pointerup", () => (drag = null));
+  c.addEventListener("dblclick", () => { if (plot.series) setSeries(plot.series); });
+}
+
+// ---------------------------------------------------------------- boards
+let lastBoards = null;
+const boardViews = {}; // board id -> zoom state of its canvas
+
+async function boardAction(id, action, extra = {}, force = false) {
+  try {
+    const r = await postJson(`/api/boards/${id}/${action}`, { tab: TAB, force, ...extra });
+    toast(r.message);
+  } catch (e) {
+    if (e.status === 409 && /another tab/.test(e.message)) {
+      const card = document.querySelector(`.board[data-board="${id}"]`);
+      if (card) card.querySelector(".board-msg").textContent = e.message;
+    }
+    toast(e.message, true);
+  }
+}
+
+async function toolpathOf(jobId) {
+  if (app.jobs[jobId]) return app.jobs[jobId];
+  try {
+    app.jobs[jobId] = await api(`/api/jobs/${jobId}`);
+  } catch (_) {
+    app.jobs[jobId] = { toolpath: null };
+  }
+  return app.jobs[jobId];
+}
+
+function boardCard(b) {
+  const id = b.id;
+  const btn = (label, action, extra) => el("button", { "data-action": action, onclick: () => boardAction(id, action, extra ? extra() : {}) }, label);
+  const axis = el("select", { class: "jog-axis" }, el("option", {}, "x"), el("option", {}, "y"), el("option", {}, "z"));
+  const mm = el("input", { class: "num jog-mm", type: "number", step: "any", value: "10" });
+  const inlet = el("select", { class: "valve-inlet" }, ...[0, 1, 2, 3].map((i) => el("option", {}, String(i))));
+  const secs = el("input", { class: "num valve-secs", type: "number", step: "any", value: "1", min: "0.1", max: "10" });
+  const canvas = el("canvas", { width: "420", height: "300", class: "board-canvas" });
+  boardViews[id] = { scale: 1, ox: 0, oy: 0, fit: true };
+  zoomPan(canvas, boardViews[id], () => drawBoard(id));
+  const card = el("div", { class: "board", "data-board": String(id) },
+    el("div", { class: "info" },
+      el("h3", {}, `${b.name} `, el("span", { class: "muted small" }, b.port)),
+      el("div", {}, "State: ", el("span", { class: "state" }), " ", el("span", { class: "muted small seq" })),
+      el("div", { class: "fault", hidden: "" }),
+      el("div", { class: "board-msg muted" }),
+      el("div", { class: "job-line" }),
+      el("div", { class: "progress-row" }, el("progress", { max: "1", value: "0", class: "print-progress" })),
+      el("div", { class: "live" }),
+      el("div", { class: "upload-row", hidden: "" }, "Upload to the board: ", el("progress", { max: "1", value: "0", class: "upload-progress" }), el("span", { class: "upload-text" })),
+      el("div", { class: "controls" },
+        el("button", { class: "primary", "data-action": "send", onclick: () => app.job ? boardAction(id, "send", { job: app.job.id }) : toast("Slice a design first (Design page).", true) }, "Send current job"),
+        btn("Start next", "start-next"), btn("Pause", "pause"), btn("Resume", "resume"), btn("Abort", "abort"), btn("Home", "home")),
+      el("div", { class: "controls" }, "Jog ", axis, mm, " mm ", btn("Jog", "jog", () => ({ axis: axis.value, mm: Number(mm.value) })),
+        " Valve test: inlet ", inlet, " for ", secs, " s ", btn("Open", "valve", () => ({ inlet: Number(inlet.value), seconds: Number(secs.value) }))),
+      el("div", { class: "controls" }, el("button", { class: "take", onclick: () => boardAction(id, "claim", {}, true), hidden: "" }, "Take control")),
+      el("div", { class: "queue" })),
+    canvas);
+  return card;
+}
+
+const trails = {}; // board id -> recent head positions
+
+async function drawBoard(id) {
+  const b = lastBoards && lastBoards.boards[id];
+  const card = document.querySelector(`.board[data-board="${id}"]`);
+  if (!b || !card) return;
+  const canvas = card.querySelector("canvas");
+  const job = b.job ? await toolpathOf(b.job.job) : null;
+  const tp = job && job.toolpath;
+  const v = boardViews[id];
+  drawToolpath(canvas, tp, v, "all", b.job ? b.command : 0);
+  if (!tp) return;
+  const g = canvas.getContext("2d");
+  const X = (x) => x * v.scale + v.ox, Y = (y) => v.oy - y * v.scale;
+  g.fillStyle = b.valves ? "#c0392b" : "#333";
+  g.beginPath();
+  g.arc(X(b.position[0]), Y(b.position[1]), 5, 0, 2 * Math.PI);
+  g.fill();
+}
+
+function renderBoards(data) {
+  if (!data) return;
+  lastBoards = data;
+  const box = $("boards");
+  for (const b of data.boards) {
+    let card = box.querySelector(`.board[data-board="${b.id}"]`);
+    if (!card) box.append((card = boardCard(b)));
+    const q = (s) => card.querySelector(s);
+    q(".state").textContent = b.connected ? b.activity : "not connected";
+    card.dataset.activity = b.activity;
+    card.dataset.run = b.run;
+    card.dataset.progress = String(b.progress);
+    card.dataset.seq = String(b.seq);
+    q(".seq").textContent = `(${b.mode}, update ${b.seq})`;
+    const ctl = data.controllers[b.id];
+    const other = ctl && ctl !== TAB;
+    q(".take").hidden = !other;
+    q(".fault").hidden = !b.fault;
+    q(".fault").textContent = b.fault || "";
+    q(".board-msg").textContent = other ? "Another tab commands this board; its status is shown here." : (b.message || "");
+    q(".job-line").textContent = b.job ? `Job: ${b.job.name} (${b.command} of ${b.commands} commands, layer ${b.layer})` : "No job sent yet.";
+    q(".print-progress").value = b.progress;
+    const valves = [0, 1, 2, 3].map((i) => ((b.valves >> i) & 1 ? "●" : "○")).join("");
+    q(".live").textContent = `${(b.progress * 100).toFixed(1)} %  ETA ${fmtTime(b.eta_s)}  elapsed ${fmtTime(b.elapsed_s)}\n` +
+      `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  flow ${b.flow.toFixed(2)} mm³/s  ${b.homed ? "homed" : "not homed"}`;
+    q(".live").style.whiteSpace = "pre";
+    q(".upload-row").hidden = !b.upload;
+    if (b.upload) {
+      q(".upload-progress").value = b.upload[0] / Math.max(b.upload[1], 1);
+      q(".upload-text").textContent = ` ${b.upload[0]} of ${b.upload[1]} bytes`;
+    }
+    q(".queue").replaceChildren(b.queue.length ? "Queue: " : "", ...b.queue.map((j) => el("span", {}, `${j.name} (job ${j.job}) `, el("button", { onclick: () => boardAction(b.id, "unqueue", { job: j.job }) }, "remove"), " ")));
+    if (!$("page-print").hidden) drawBoard(b.id);
+  }
+}
+
+function followBoards() {
+  const es = new EventSource(`/api/boards/events?tab=${encodeURIComponent(TAB)}`);
+  es.addEventListener("boards", (e) => renderBoards(JSON.parse(e.data)));
+  es.onerror = () => {
+    // The browser reconnects by itself; say so while it does.
+    for (const m of document.querySelectorAll(".board-msg")) m.textContent = "Lost the dashboard server; reconnecting…";
+  };
+}
+
+// ---------------------------------------------------------------- calibrate
+let calFragment = null;
+$("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
+$("cal-run").addEventListener("click", async () => {
+  showError("cal-error", "");
+  const f = $("cal-file").files[0];
+  if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+  const form = new FormData();
+  form.append("data", f, f.name);
+  form.append("kind", $("cal-kind").value);
+  try {
+    const r = await api("/api/calibrate/rheology", { method: "POST", body: form });
+    $("cal-report").textContent = r.report;
+    calFragment = r.fragment;
+    $("cal-fragment").textContent = r.fragment || "(no model the core accepts: see the verdicts)";
+    $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
+  } catch (e) {
+    showError("cal-error", e.message);
+  }
+});
+// The fragment's `key = value` lines become edits of that inlet in the config editor.
+$("cal-apply").addEventListener("click", async () => {
+  if (!calFragment || !app.config) return showError("cal-error", "Fit a measurement first.");
+  const inlet = $("cal-inlet").value;
+  const edits = calFragment.split("\n").filter((l) => l.includes("=") && !l.trim().startsWith("#")).map((l) => {
+    const i = l.indexOf("=");
+    return { path: `inlet[${inlet}].${l.slice(0, i).trim()}`, raw: l.slice(i + 1).trim() };
+  });
+  try {
+    const c = await postJson("/api/config/check", { text: app.config.text, edits });
+    renderConfig(c);
+    clearFieldErrors();
+    toast(`Applied to inlet ${inlet}; the config on the Design page now uses it.`);
+  } catch (e) {
+    showError("cal-error", e.message);
+  }
+});
+
+// ---------------------------------------------------------------- start
+(async function start() {
+  try {
+    app.info = await api("/api/info");
+  } catch (e) {
+    return toast(e.message, true);
+  }
+  $("max-upload").textContent = app.info.max_upload_mb;
+  const sel = $("config-select");
+  app.info.configs.forEach((n, i) => sel.append(el("option", { value: String(i) }, n)));
+  const bundled = $("bundled");
+  const groups = [["logo.png"], ["chessboard.png"], ["cube-shell.stl", "cube-ball.stl"]];
+  for (const g of groups) {
+    bundled.append(el("button", { class: "bundled", "data-design": g[0], onclick: () => useBundled(g) }, g.join(" + ")), " ");
+  }
+  await loadConfig(0);
+  if (app.info.demo_job) {
+    try {
+      setJob(await api(`/api/jobs/${app.info.demo_job}`));
+    } catch (e) { toast(e.message, true); }
+  }
+  followBoards();
+})();

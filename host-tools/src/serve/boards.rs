@@ -1,0 +1,764 @@
+//! The boards the dashboard drives: one worker thread per board owning its link client
+//! (a serial/TCP port, or the simulated board), taking orders one at a time from a queue
+//! (so orders from several tabs never interleave on the link), polling the board ten
+//! times a second and publishing what it sees for the pages. The CLI's safety rules
+//! apply: the job's config is loaded first, the machine is homed before a job starts, a
+//! jog is sent once and bounded, a valve test closes after a bounded time, abort clears a
+//! halt. Each board has its own job queue; a finished print waits for the plate to be
+//! cleared before the next starts.
+
+use super::simlink::SimLink;
+use super::state::{lock, JobEntry};
+use super::Args;
+use crate::link::{
+    mem_options, serial, Client, JobFile, LinkError, Options, SerialLink, Transport,
+};
+use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
+use dollop::{Axis, RunState};
+use serde::Serialize;
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// A board's link: a port, or the simulated board.
+pub enum Link {
+    /// A serial device or `tcp:HOST:PORT`.
+    Serial(SerialLink),
+    /// The simulated board.
+    Sim(Box<SimLink>),
+}
+
+impl Link {
+    fn catch_up(&mut self) {
+        if let Link::Sim(s) = self {
+            s.catch_up();
+        }
+    }
+}
+
+impl Transport for Link {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        match self {
+            Link::Serial(s) => s.send(bytes),
+            Link::Sim(s) => s.send(bytes),
+        }
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        match self {
+            Link::Serial(s) => s.recv(buf, timeout),
+            Link::Sim(s) => s.recv(buf, timeout),
+        }
+    }
+    fn now(&self) -> Duration {
+        match self {
+            Link::Serial(s) => s.now(),
+            Link::Sim(s) => s.now(),
+        }
+    }
+    fn sleep(&mut self, d: Duration) {
+        match self {
+            Link::Serial(s) => s.sleep(d),
+            Link::Sim(s) => s.sleep(d),
+        }
+    }
+    fn reconnect(&mut self) -> Result<(), LinkError> {
+        match self {
+            Link::Serial(s) => s.reconnect(),
+            Link::Sim(s) => s.reconnect(),
+        }
+    }
+}
+
+/// A queued job, as the page lists it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Queued {
+    /// The job's number.
+    pub job: u64,
+    /// Its name.
+    pub name: String,
+}
+
+/// What the page shows of a board, pushed ten times a second.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct View {
+    /// Board number.
+    pub id: usize,
+    /// Name shown.
+    pub name: String,
+    /// Port, or "simulated".
+    pub port: String,
+    /// The simulated board.
+    pub simulated: bool,
+    /// A link to the board is up.
+    pub connected: bool,
+    /// What the worker is doing: idle, uploading, homing, printing, ...
+    pub activity: String,
+    /// The last thing worth telling (an order refused, a link lost), in plain words.
+    pub message: Option<String>,
+    /// A halt, in plain words with what to do.
+    pub fault: Option<String>,
+    /// Board mode (Idle, Job, Homing, Halted, ...).
+    pub mode: String,
+    /// Executor state (Printing, Paused, Done, ...).
+    pub run: String,
+    /// Homed since the drivers were enabled.
+    pub homed: bool,
+    /// Valves open, bit per inlet.
+    pub valves: u8,
+    /// Head position, mm.
+    pub position: [f64; 3],
+    /// Head speed, mm/s.
+    pub speed: f64,
+    /// Flow, mm³/s.
+    pub flow: f64,
+    /// The job being printed (or last printed).
+    pub job: Option<Queued>,
+    /// Commands done, of `commands`.
+    pub command: u32,
+    /// Commands in the job on the board.
+    pub commands: u32,
+    /// 0..1.
+    pub progress: f64,
+    /// Layer of the job (0 = the priming bead's).
+    pub layer: usize,
+    /// Seconds since the print started.
+    pub elapsed_s: f64,
+    /// Seconds left, estimated from the pace so far.
+    pub eta_s: Option<f64>,
+    /// Upload to the board: bytes acknowledged and total.
+    pub upload: Option<(u64, u64)>,
+    /// Jobs waiting.
+    pub queue: Vec<Queued>,
+    /// Updates so far (the page shows the status is live).
+    pub seq: u64,
+}
+
+/// An order for a board's worker, with where the answer goes.
+pub enum Order {
+    /// Queue a job (and start it if the board is free).
+    Send(Arc<JobEntry>),
+    /// Start the first queued job (after the plate was cleared).
+    StartNext,
+    /// Drop a queued job.
+    Unqueue(u64),
+    /// Pause after the current bead.
+    Pause,
+    /// Resume a paused print.
+    Resume,
+    /// Stop now (and clear a halt).
+    Abort,
+    /// Home all axes.
+    Home,
+    /// Move one axis, mm.
+    Jog(Axis, f64),
+    /// Open a valve for this many seconds.
+    Valve(u8, f64),
+}
+
+/// A board: its worker's queue, what it shows, and who commands it.
+pub struct Board {
+    /// Number.
+    pub id: usize,
+    orders: Mutex<mpsc::Sender<(Order, Reply)>>,
+    /// The latest view.
+    pub view: tokio::sync::watch::Receiver<View>,
+    /// The tab that commands it (set by its last accepted order).
+    pub controller: Mutex<Option<String>>,
+}
+
+impl Board {
+    /// Hands an order to the worker and waits for its answer (in plain words).
+    pub async fn order(&self, o: Order) -> Result<String, String> {
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        lock(&self.orders)
+            .send((o, tx))
+            .map_err(|_| "the board's worker has stopped; restart dollop serve".to_string())?;
+        match tokio::time::timeout(Duration::from_secs(600), rx).await {
+            Ok(Ok(r)) => r,
+            Ok(Err(_)) => Err("the board's worker stopped while carrying out the order".into()),
+            Err(_) => Err("the board did not finish the order within 10 minutes".into()),
+        }
+    }
+}
+
+/// Starts the workers: the simulated boards first, then `--board` ports (or the USB board
+/// found by VID/PID).
+pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
+    let mut out = Vec::new();
+    for i in 0..a.sim_boards.max(1) {
+        let name = if a.sim_boards > 1 {
+            format!("simulated board {}", i + 1)
+        } else {
+            "simulated board".into()
+        };
+        out.push(spawn(i, name, "simulated".into(), None, a.sim_speed));
+    }
+    let mut ports = a.boards.clone();
+    if ports.is_empty() && !a.no_usb {
+        if let Ok(p) = serial::detect() {
+            ports.push(p);
+        }
+    }
+    for p in ports {
+        let id = out.len();
+        out.push(spawn(id, format!("board {id}"), p.clone(), Some(p), 1.0));
+    }
+    out
+}
+
+fn spawn(id: usize, name: String, port: String, path: Option<String>, speed: f64) -> Arc<Board> {
+    let (tx, rx) = mpsc::channel();
+    let view = View {
+        id,
+        name,
+        port,
+        simulated: path.is_none(),
+        activity: "connecting".into(),
+        ..Default::default()
+    };
+    let (vtx, vrx) = tokio::sync::watch::channel(view.clone());
+    let board = Arc::new(Board {
+        id,
+        orders: Mutex::new(tx),
+        view: vrx,
+        controller: Mutex::new(None),
+    });
+    let spawned = std::thread::Builder::new()
+        .name(format!("board-{id}"))
+        .spawn(move || Worker::new(path, speed, view, vtx).run(rx));
+    if let Err(e) = spawned {
+        eprintln!("dollop serve: cannot start the worker of board {id}: {e}");
+    }
+    board
+}
+
+type Reply = tokio::sync::oneshot::Sender<Result<String, String>>;
+
+/// The job on the board, and how its print goes.
+struct Current {
+    entry: Arc<JobEntry>,
+    started: Option<Instant>,
+    /// Where each layer starts, by command.
+    layer_starts: Vec<u32>,
+    /// Aborted from here.
+    aborted: bool,
+}
+
+struct Worker {
+    path: Option<String>,
+    speed: f64,
+    client: Option<Client<Link>>,
+    view: View,
+    vtx: tokio::sync::watch::Sender<View>,
+    queue: Vec<Arc<JobEntry>>,
+    current: Option<Current>,
+    valve_close: Option<(Instant, u8)>,
+    next_connect: Instant,
+}
+
+fn mode_words(s: &Status) -> Option<String> {
+    let k = &s.control;
+    if k.mode != Mode::Halted && !k.estop {
+        return None;
+    }
+    Some(match k.halt {
+        Some(Halt::Fault(dollop::Fault::EStop)) if k.estop => {
+            "Emergency stop: the e-stop input is active. Release it, then press Abort to clear, then Home.".into()
+        }
+        Some(h) => format!("The board stopped: {h}. Press Abort to clear it, then Home before the next job."),
+        None if k.estop => "Emergency stop input active: release it, then press Abort.".into(),
+        None => "The board is halted. Press Abort to clear it, then Home.".into(),
+    })
+}
+
+impl Worker {
+    fn new(
+        path: Option<String>,
+        speed: f64,
+        view: View,
+        vtx: tokio::sync::watch::Sender<View>,
+    ) -> Self {
+        Worker {
+            path,
+            speed,
+            client: None,
+            view,
+            vtx,
+            queue: Vec::new(),
+            current: None,
+            valve_close: None,
+            next_connect: Instant::now(),
+        }
+    }
+
+    fn publish(&mut self) {
+        self.view.seq += 1;
+        self.view.queue = self
+            .queue
+            .iter()
+            .map(|e| Queued {
+                job: e.id,
+                name: e.figures.name.clone(),
+            })
+            .collect();
+        let _ = self.vtx.send(self.view.clone());
+    }
+
+    fn connect(&mut self) {
+        if self.client.is_some() || Instant::now() < self.next_connect {
+            return;
+        }
+        self.view.activity = "connecting".into();
+        let opened = match &self.path {
+            None => Ok((Link::Sim(Box::new(SimLink::new(self.speed))), mem_options())),
+            Some(p) => SerialLink::open(Some(p)).map(|l| (Link::Serial(l), Options::default())),
+        };
+        let r = opened.and_then(|(link, opts)| {
+            let mut c = Client::open(link, opts);
+            c.connect().map(|_| c)
+        });
+        match r {
+            Ok(c) => {
+                self.client = Some(c);
+                self.view.connected = true;
+                self.view.activity = "idle".into();
+                self.view.message = None;
+            }
+            Err(e) => {
+                self.view.connected = false;
+                self.view.activity = "not connected".into();
+                self.view.message = Some(format!(
+                    "{e}; retrying every 3 s (check the cable and power)"
+                ));
+                self.next_connect = Instant::now() + Duration::from_secs(3);
+            }
+        }
+    }
+
+    fn lost(&mut self, e: &LinkError) {
+        self.client = None;
+        self.view.connected = false;
+        self.view.upload = None;
+        self.view.activity = "not connected".into();
+        self.view.message = Some(format!(
+            "Lost the board: {e}. A print on it pauses by its link-loss policy; plug it back in and press Resume. Queued jobs are kept."
+        ));
+        self.next_connect = Instant::now() + Duration::from_secs(1);
+    }
+
+    fn run(mut self, rx: mpsc::Receiver<(Order, Reply)>) {
+        loop {
+            self.connect();
+            match rx.recv_timeout(Duration::from_millis(100)) {
+                Ok((order, reply)) => {
+                    let r = self.handle(order);
+                    if let Err(m) = &r {
+                        self.view.message = Some(m.clone());
+                    }
+                    let _ = reply.send(r);
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => return,
+            }
+            self.tick();
+            self.publish();
+        }
+    }
+
+    /// Runs the board's clock, closes a timed valve, polls the status.
+    fn tick(&mut self) {
+        let Some(c) = self.client.as_mut() else {
+            return;
+        };
+        c.transport_mut().catch_up();
+        if let Some((at, inlet)) = self.valve_close {
+            if Instant::now() >= at {
+                self.valve_close = None;
+                if let Err(e) = c.command(&Request::Valve { inlet, open: false }) {
+                    self.view.message = Some(format!("closing valve {inlet} failed: {e}"));
+                }
+            }
+        }
+        match c.status() {
+            Ok(s) => self.show(&s),
+            Err(e) => self.lost(&e),
+        }
+    }
+
+    fn show(&mut self, s: &Status) {
+        let k = &s.control;
+        let v = &mut self.view;
+        v.mode = format!("{:?}", k.mode);
+        v.run = format!("{:?}", k.run);
+        v.homed = k.homed;
+        v.valves = k.valves;
+        v.position = k.position_um.map(|u| u as f64 / 1000.0);
+        v.speed = k.speed_mm_s as f64;
+        v.flow = k.q_mm3_s as f64;
+        v.fault = mode_words(s);
+        if let JobSlot::Ready { commands, .. } = s.job {
+            v.commands = commands;
+        }
+        v.command = k.command;
+        let printing = k.mode == Mode::Job;
+        if let Some(cur) = self.current.as_mut() {
+            v.progress = if k.run == RunState::Done {
+                1.0
+            } else {
+                (k.command as f64 / v.commands.max(1) as f64).min(1.0)
+            };
+            v.layer = cur
+                .layer_starts
+                .partition_point(|&c| c <= k.command)
+                .saturating_sub(1);
+            if let Some(t) = cur.started {
+                v.elapsed_s = t.elapsed().as_secs_f64();
+                v.eta_s = (v.progress > 0.01 && v.progress < 1.0)
+                    .then(|| v.elapsed_s * (1.0 - v.progress) / v.progress);
+            }
+            if k.run == RunState::Done {
+                v.eta_s = Some(0.0);
+            }
+        }
+        v.activity = match (k.mode, k.run) {
+            (Mode::Job, RunState::Paused) => "paused".into(),
+            (Mode::Job, _) => "printing".into(),
+            (Mode::Homing, _) => "homing".into(),
+            (Mode::Halted, _) => "halted".into(),
+            (Mode::ValveTest, _) => "valve test".into(),
+            (_, RunState::Done) if self.current.is_some() => {
+                "finished: clear the plate, then Start next".into()
+            }
+            (_, RunState::Aborted) if self.current.is_some() => "aborted".into(),
+            (m, _) => format!("{m:?}").to_lowercase(),
+        };
+        if !printing && self.current.as_ref().is_some_and(|c| c.aborted) && k.mode == Mode::Idle {
+            v.activity = "aborted".into();
+        }
+    }
+
+    fn client(&mut self) -> Result<&mut Client<Link>, String> {
+        self.client
+            .as_mut()
+            .ok_or_else(|| "the board is not connected; check its cable and power".to_string())
+    }
+
+    fn handle(&mut self, o: Order) -> Result<String, String> {
+        match o {
+            Order::Send(e) => {
+                let name = e.figures.name.clone();
+                self.queue.push(e);
+                let busy = self.view.mode == "Job" || self.view.activity.starts_with("finished");
+                if busy || self.client.is_none() {
+                    return Ok(format!("{name} queued ({} waiting)", self.queue.len()));
+                }
+                self.start_next()
+            }
+            Order::StartNext => self.start_next(),
+            Order::Unqueue(id) => {
+                let n = self.queue.len();
+                self.queue.retain(|e| e.id != id);
+                if self.queue.len() == n {
+                    return Err("that job is not in this board's queue".into());
+                }
+                Ok("removed from the queue".into())
+            }
+            Order::Pause => {
+                self.client()?
+                    .command(&Request::Pause)
+                    .map_err(|e| e.to_string())?;
+                Ok("pausing after the current bead (valves closed)".into())
+            }
+            Order::Resume => {
+                self.client()?
+                    .command(&Request::Resume)
+                    .map_err(|e| e.to_string())?;
+                Ok("resumed".into())
+            }
+            Order::Abort => {
+                let c = self.client()?;
+                let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
+                c.command(&Request::Abort).map_err(|e| e.to_string())?;
+                c.sleep(Duration::from_millis(5));
+                if let (Some(cur), true) = (self.current.as_mut(), printing) {
+                    cur.aborted = true;
+                }
+                let Some(c) = self.client.as_mut() else {
+                    return Err("the board is not connected".into());
+                };
+                let s = c.status().map_err(|e| e.to_string())?;
+                if s.control.mode == Mode::Halted {
+                    c.command(&Request::ClearFault).map_err(|e| e.to_string())?;
+                    return Ok("halt cleared; home the machine before the next job".into());
+                }
+                Ok("aborted: valves closed, drivers off".into())
+            }
+            Order::Home => {
+                self.ensure_config()?;
+                self.client()?
+                    .command(&Request::Home)
+                    .map_err(|e| e.to_string())?;
+                Ok("homing".into())
+            }
+            Order::Jog(axis, mm) => {
+                if !mm.is_finite() || mm.abs() > 2000.0 {
+                    return Err(format!("jog distance {mm} mm is not a plausible move"));
+                }
+                self.ensure_config()?;
+                // Sent once: a jog repeated after a lost answer would move twice.
+                match self.client()?.call_once(&Request::Jog {
+                    axis,
+                    um: (mm * 1000.0).round() as i32,
+                }) {
+                    Ok(dollop::wire::Reply::Ack) => Ok(format!("jogging {axis:?} by {mm} mm")),
+                    Ok(dollop::wire::Reply::Refused(r)) => Err(LinkError::Refused(r).to_string()),
+                    Ok(other) => Err(format!("unexpected answer {other:?}")),
+                    Err(e) => Err(e.to_string()),
+                }
+            }
+            Order::Valve(inlet, secs) => {
+                if !(secs.is_finite() && secs > 0.0 && secs <= 10.0) {
+                    return Err("a valve test lasts between 0 and 10 s".into());
+                }
+                self.ensure_config()?;
+                self.client()?
+                    .command(&Request::Valve { inlet, open: true })
+                    .map_err(|e| e.to_string())?;
+                self.valve_close = Some((Instant::now() + Duration::from_secs_f64(secs), inlet));
+                Ok(format!("valve {inlet} open for {secs} s"))
+            }
+        }
+    }
+
+    /// Loads a config if the board has none (jog, home and valves need one): the queued
+    /// job's, or the current one's.
+    fn ensure_config(&mut self) -> Result<(), String> {
+        let cfg = self
+            .current
+            .as_ref()
+            .map(|c| c.entry.config.clone())
+            .or_else(|| self.queue.first().map(|e| e.config.clone()));
+        let c = self.client()?;
+        if c.info().and_then(|i| i.config).is_some() {
+            return Ok(());
+        }
+        if let Ok(s) = c.status() {
+            if s.config.is_some() {
+                return Ok(());
+            }
+        }
+        let Some(cfg) = cfg else {
+            return Err("the board has no machine config yet: send it a job first (its config is loaded with it)".into());
+        };
+        c.command(&Request::LoadConfig(cfg))
+            .map_err(|e| format!("loading the config: {e}"))
+    }
+
+    /// Uploads the first queued job, homes if needed, and starts it.
+    fn start_next(&mut self) -> Result<String, String> {
+        let Some(entry) = self.queue.first().cloned() else {
+            return Err("no job is waiting for this board".into());
+        };
+        if self.view.mode == "Job" {
+            return Err("the board is printing; wait for the print to end or abort it".into());
+        }
+        let r = self.upload_and_start(&entry);
+        self.view.upload = None;
+        match r {
+            Ok(m) => {
+                self.queue.retain(|e| e.id != entry.id);
+                Ok(m)
+            }
+            Err(e) => {
+                if e.is_transient() || matches!(e, LinkError::Io(_) | LinkError::Stalled { .. }) {
+                    self.lost(&e);
+                }
+                Err(format!(
+                    "{} was not started: {e}; it stays in the queue",
+                    entry.figures.name
+                ))
+            }
+        }
+    }
+
+    fn upload_and_start(&mut self, entry: &Arc<JobEntry>) -> Result<String, LinkError> {
+        let job = JobFile::parse(&entry.sliced.to_bytes())
+            .map_err(|e| LinkError::Protocol(format!("the job does not check: {e}")))?;
+        let Some(c) = self.client.as_mut() else {
+            return Err(LinkError::Disconnected);
+        };
+        let hash = dollop::job::config_hash(&entry.config);
+        let status = c.status()?;
+        if status.config != Some(hash) {
+            c.command(&Request::LoadConfig(entry.config.clone()))?;
+        }
+        c.command(&Request::Settings(dollop::wire::Settings::default()))?;
+        self.view.activity = "uploading".into();
+        self.view.job = Some(Queued {
+            job: entry.id,
+            name: entry.figures.name.clone(),
+        });
+        self.view.progress = 0.0;
+        self.view.eta_s = None;
+        let total = job.body.len() as u64;
+        let vtx = self.vtx.clone();
+        let mut shown = self.view.clone();
+        let (commands, _) = c.upload(&job, &mut |p| {
+            shown.upload = Some((p.acked, total));
+            shown.seq += 1;
+            let _ = vtx.send(shown.clone());
+        })?;
+        self.view.seq = shown.seq;
+        self.view.upload = None;
+        self.view.commands = commands;
+        if !c.status()?.control.homed {
+            self.view.activity = "homing".into();
+            self.publish_now();
+            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+            c.command(&Request::Home)?;
+            let start = Instant::now();
+            c.sleep(Duration::from_millis(5));
+            loop {
+                let s = c.status()?;
+                match s.control.mode {
+                    Mode::Idle => break,
+                    Mode::Halted => {
+                        return Err(LinkError::Protocol(
+                            mode_words(&s).unwrap_or_else(|| "homing failed".into()),
+                        ))
+                    }
+                    _ => {}
+                }
+                if start.elapsed() > Duration::from_secs(300) {
+                    return Err(LinkError::Protocol(
+                        "homing did not finish in 5 minutes; check the endstops".into(),
+                    ));
+                }
+                c.sleep(Duration::from_millis(50));
+            }
+            if !c.status()?.control.homed {
+                return Err(LinkError::Protocol(
+                    "homing did not finish; check the endstops".into(),
+                ));
+            }
+        }
+        let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+        c.command(&Request::Start)?;
+        let mut layer_starts = Vec::new();
+        let mut last = usize::MAX;
+        for (p, start) in entry
+            .toolpath
+            .paths
+            .iter()
+            .zip(entry.toolpath.starts.iter())
+        {
+            if p.l != last {
+                last = p.l;
+                layer_starts.push(*start);
+            }
+        }
+        self.current = Some(Current {
+            entry: entry.clone(),
+            started: Some(Instant::now()),
+            layer_starts,
+            aborted: false,
+        });
+        Ok(format!("{} uploaded and started", entry.figures.name))
+    }
+
+    fn publish_now(&mut self) {
+        self.publish();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serve::design;
+
+    fn chessboard() -> Arc<JobEntry> {
+        let checked = design::check(design::BUNDLED[0].1).expect("config");
+        let uploads = [design::Upload {
+            name: "chessboard.png".into(),
+            bytes: design::DESIGNS[1].1.to_vec(),
+        }];
+        let form = design::SliceForm {
+            width_mm: Some(8.0),
+            ..Default::default()
+        };
+        let sliced = design::slice(&uploads, &checked.config, &form).expect("slices");
+        let toolpath = design::toolpath(&sliced.commands, sliced.header.start_um, 0.8);
+        let figures = design::figures(&sliced, &checked.config);
+        Arc::new(JobEntry {
+            id: 7,
+            config: checked.config,
+            config_text: checked.text,
+            sliced,
+            toolpath,
+            figures,
+        })
+    }
+
+    fn worker(speed: f64) -> Worker {
+        let (vtx, _vrx) = tokio::sync::watch::channel(View::default());
+        let mut w = Worker::new(None, speed, View::default(), vtx);
+        w.connect();
+        assert!(w.view.connected, "{:?}", w.view.message);
+        w
+    }
+
+    #[test]
+    fn a_board_gone_mid_upload_keeps_the_job_queued() {
+        let mut w = worker(50.0);
+        if let Some(Link::Sim(s)) = w.client.as_mut().map(|c| c.transport_mut()) {
+            let m = s.mem();
+            m.dead_after = Some(m.stats.host_frames + 12);
+        }
+        w.queue.push(chessboard());
+        let e = w.start_next().expect_err("the upload fails");
+        assert!(e.contains("stays in the queue"), "{e}");
+        assert_eq!(w.queue.len(), 1);
+        assert!(!w.view.connected);
+        assert!(
+            w.view
+                .message
+                .as_deref()
+                .is_some_and(|m| m.contains("Lost the board")),
+            "{:?}",
+            w.view.message
+        );
+    }
+
+    #[test]
+    fn a_job_prints_to_the_end_and_orders_are_checked() {
+        let mut w = worker(200.0);
+        let job = chessboard();
+        assert_eq!(
+            w.handle(Order::Jog(Axis::X, f64::NAN)).err().as_deref(),
+            Some("jog distance NaN mm is not a plausible move")
+        );
+        assert!(w.handle(Order::Valve(0, 60.0)).is_err());
+        assert!(w
+            .handle(Order::Home)
+            .err()
+            .is_some_and(|e| e.contains("no machine config")));
+        w.handle(Order::Send(job)).expect("starts");
+        assert!(w.queue.is_empty());
+        let start = Instant::now();
+        while w.view.progress < 1.0 {
+            assert!(
+                start.elapsed() < Duration::from_secs(120),
+                "stuck at {} ({})",
+                w.view.progress,
+                w.view.activity
+            );
+            w.tick();
+        }
+        assert!(
+            w.view.activity.starts_with("finished"),
+            "{}",
+            w.view.activity
+        );
+        assert_eq!(w.view.eta_s, Some(0.0));
+    }
+}

@@ -1,0 +1,792 @@
+//! Design to job for the dashboard: the configs it offers (bundled, or `--config`), a
+//! config's fields as the editor shows them and its check (`dollop config --check`'s
+//! validation, each error tied to its field, the derived figures), and slicing uploaded
+//! designs with the CLI's options into a job and its toolpath for the browser to draw.
+
+use super::error::{ApiError, ApiResult};
+use crate::cmd::slice::Args as SliceArgs;
+use crate::slicer::{self, SliceError, Sliced};
+use dollop::config::Config;
+use dollop::Command;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The configs compiled into the binary, by name.
+pub const BUNDLED: [(&str, &str); 4] = [
+    (
+        "seed-paper-valves",
+        include_str!("../../../configs/seed-paper-valves.toml"),
+    ),
+    (
+        "seed-paper",
+        include_str!("../../../configs/seed-paper.toml"),
+    ),
+    (
+        "food-pastes",
+        include_str!("../../../configs/food-pastes.toml"),
+    ),
+    ("syringes", include_str!("../../../configs/syringes.toml")),
+];
+
+/// The bundled designs, by file name.
+pub const DESIGNS: [(&str, &[u8]); 4] = [
+    ("logo.png", include_bytes!("../../designs/logo.png")),
+    (
+        "chessboard.png",
+        include_bytes!("../../designs/chessboard.png"),
+    ),
+    (
+        "cube-shell.stl",
+        include_bytes!("../../designs/cube-shell.stl"),
+    ),
+    (
+        "cube-ball.stl",
+        include_bytes!("../../designs/cube-ball.stl"),
+    ),
+];
+
+/// One editable value of a config: where it is and its TOML text.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Field {
+    /// `channel.line_pitch_mm`, `inlet[0].pressure_kpa`, `motion.max_accel_mm_s2`.
+    pub path: String,
+    /// The value as TOML (`0.8`, `"auto"`, `[80.0, 80.0, 400.0]`, `{ newtonian = ... }`).
+    pub raw: String,
+}
+
+/// What the core derives from a valid config (the figures `dollop config --check` prints).
+#[derive(Debug, Clone, Serialize)]
+pub struct Derived {
+    /// Label and value, in order.
+    pub figures: Vec<(String, String)>,
+}
+
+/// A config that parsed and validated.
+pub struct Checked {
+    /// The config.
+    pub config: Config,
+    /// Its TOML text (edits applied).
+    pub text: String,
+    /// Its fields, for the editor.
+    pub fields: Vec<Field>,
+    /// The derived figures.
+    pub derived: Derived,
+}
+
+fn parse_table(text: &str) -> ApiResult<toml::Table> {
+    text.parse::<toml::Table>().map_err(|e| {
+        ApiError::bad(format!(
+            "the config is not valid TOML: {}",
+            one_line(e.message())
+        ))
+        .with_span(text, e.span())
+    })
+}
+
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+impl ApiError {
+    /// Ties a TOML error to the field on the line where it was found.
+    fn with_span(self, text: &str, span: Option<std::ops::Range<usize>>) -> Self {
+        match span.and_then(|s| field_at(text, s.start)) {
+            Some(f) => self.at(f),
+            None => self,
+        }
+    }
+}
+
+/// The field (as `Field::path`) whose `key = value` line holds byte `at` of `text`.
+fn field_at(text: &str, at: usize) -> Option<String> {
+    let mut section = String::new();
+    let mut counts: std::collections::HashMap<String, usize> = Default::default();
+    let mut offset = 0;
+    for line in text.split_inclusive('\n') {
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split("]]").next()) {
+            let n = counts.entry(name.trim().to_string()).or_insert(0);
+            section = format!("{}[{}]", name.trim(), *n);
+            *n += 1;
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split(']').next()) {
+            // A sub-table of an array element (`[inlet.rheology]`) belongs to the element.
+            let name = name.trim();
+            let head = name.split('.').next().unwrap_or(name);
+            section = match counts.get(head) {
+                Some(n) if *n > 0 => format!(
+                    "{head}[{}].{}",
+                    n - 1,
+                    name.split_once('.').map(|x| x.1).unwrap_or("")
+                ),
+                _ => name.to_string(),
+            };
+        }
+        if at < offset + line.len() {
+            let key = t.split('=').next()?.trim();
+            if t.contains('=') && !key.is_empty() {
+                let base = section.trim_end_matches('.');
+                // Keys of a nested table belong to the field that holds the table.
+                let base = match base.split_once("].") {
+                    Some((arr, sub)) => {
+                        return Some(format!("{arr}].{}", sub.split('.').next().unwrap_or(sub)))
+                    }
+                    None => base,
+                };
+                return Some(if base.is_empty() {
+                    key.to_string()
+                } else {
+                    format!("{base}.{key}")
+                });
+            }
+            return (!section.is_empty()).then(|| section.clone());
+        }
+        offset += line.len();
+    }
+    None
+}
+
+/// The fields of a config's TOML, in file order (sections, then `[[inlet]]` tables).
+pub fn fields(text: &str) -> ApiResult<Vec<Field>> {
+    let table = parse_table(text)?;
+    let mut out = Vec::new();
+    for (section, v) in &table {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, v) in t {
+                    out.push(Field {
+                        path: format!("{section}.{k}"),
+                        raw: v.to_string(),
+                    });
+                }
+            }
+            toml::Value::Array(a) if a.iter().all(|x| x.is_table()) && !a.is_empty() => {
+                for (i, t) in a.iter().enumerate() {
+                    if let toml::Value::Table(t) = t {
+                        for (k, v) in t {
+                            out.push(Field {
+                                path: format!("{section}[{i}].{k}"),
+                                raw: v.to_string(),
+                            });
+                        }
+                    }
+                }
+            }
+            other => out.push(Field {
+                path: section.clone(),
+                raw: other.to_string(),
+            }),
+        }
+    }
+    Ok(out)
+}
+
+/// Sets `path` (a `Field::path`) in `table` to `value`.
+fn set(table: &mut toml::Table, path: &str, value: toml::Value) -> ApiResult<()> {
+    let unknown = || ApiError::bad(format!("{path}: no such field in this config")).at(path);
+    let (head, key) = match path.split_once('.') {
+        Some((h, k)) => (h, Some(k)),
+        None => (path, None),
+    };
+    let Some(key) = key else {
+        table.insert(head.to_string(), value);
+        return Ok(());
+    };
+    let slot = match head.split_once('[') {
+        Some((name, idx)) => {
+            let i: usize = idx.trim_end_matches(']').parse().map_err(|_| unknown())?;
+            table
+                .get_mut(name)
+                .and_then(|v| v.as_array_mut())
+                .and_then(|a| a.get_mut(i))
+                .and_then(|v| v.as_table_mut())
+        }
+        None => table.get_mut(head).and_then(|v| v.as_table_mut()),
+    }
+    .ok_or_else(unknown)?;
+    slot.insert(key.to_string(), value);
+    Ok(())
+}
+
+/// Applies the editor's edits to `text`; each value is TOML (`0.8`, `"auto"`).
+pub fn apply(text: &str, edits: &[Field]) -> ApiResult<String> {
+    if edits.is_empty() {
+        return Ok(text.to_string());
+    }
+    let mut table = parse_table(text)?;
+    for e in edits {
+        let wrapped = format!("v = {}", e.raw);
+        let value = wrapped
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .ok_or_else(|| {
+                ApiError::bad(format!(
+                    "{}: {:?} is not a value (a number, \"text\" in quotes, [a, b] or {{ k = v }})",
+                    e.path, e.raw
+                ))
+                .at(&e.path)
+            })?;
+        set(&mut table, &e.path, value)?;
+    }
+    toml::to_string(&table)
+        .map_err(|e| ApiError::internal(format!("cannot write the config back: {e}")))
+}
+
+/// The field of a core validation error, as the editor names it.
+fn field_of(problem: &dollop::ConfigError) -> String {
+    let f = problem.field.to_string();
+    // `motion.max_accel_mm_s2[1]` is one input holding the whole list.
+    match (f.starts_with("inlet["), f.rfind('[')) {
+        (false, Some(i)) => f[..i].to_string(),
+        _ => f,
+    }
+}
+
+/// Parses and validates a config as `dollop config --check` does.
+pub fn check(text: &str) -> ApiResult<Checked> {
+    let config: Config = toml::from_str(text).map_err(|e| {
+        ApiError::bad(format!(
+            "the config does not parse: {}",
+            one_line(e.message())
+        ))
+        .with_span(text, e.span())
+    })?;
+    let m = match slicer::validate(Path::new("config"), &config) {
+        Ok(m) => m,
+        Err(SliceError::ConfigInvalid { problem, .. }) => {
+            return Err(ApiError::bad(problem.to_string()).at(field_of(&problem)))
+        }
+        Err(e) => return Err(ApiError::bad(e.to_string())),
+    };
+    let transit = slicer::toolpath::transit_mm(&m);
+    let mut figures = vec![
+        ("bead section S".into(), format!("{:.4} mm²", m.bead_area)),
+        (
+            "channel volume".into(),
+            format!("{:.4} mm³", m.v_channel.mm3::<f64>()),
+        ),
+        (
+            "hanging filament".into(),
+            format!("{:.4} mm³", m.v_hang.mm3::<f64>()),
+        ),
+        (
+            "advance distance".into(),
+            format!(
+                "{transit:.3} mm (priming bead at least {:.1} mm)",
+                2.0 * transit
+            ),
+        ),
+        (
+            "fastest flow-driven speed".into(),
+            format!(
+                "{:.2} mm/s (cap {} mm/s)",
+                m.v_flow_max, config.motion.print_speed_max_mm_s
+            ),
+        ),
+        ("corner radius".into(), format!("{:.3} mm", m.corner_radius)),
+    ];
+    for (i, (inlet, c)) in m.inlets.iter().zip(config.inlets.iter()).enumerate() {
+        figures.push((
+            format!("inlet {i} ({}) supply", c.material),
+            format!("{:.2} kPa", inlet.supply_pa / 1e3),
+        ));
+    }
+    Ok(Checked {
+        fields: fields(text)?,
+        text: text.to_string(),
+        config,
+        derived: Derived { figures },
+    })
+}
+
+/// The slicing options of the page, as the CLI's flags (strings as typed; empty = unset).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(default)]
+pub struct SliceForm {
+    /// --width-mm
+    pub width_mm: Option<f64>,
+    /// --height-mm
+    pub height_mm: Option<f64>,
+    /// --layers
+    pub layers: Option<usize>,
+    /// --rotate (0, 90, 180, 270)
+    pub rotate: Option<String>,
+    /// --mirror (none, x, y)
+    pub mirror: Option<String>,
+    /// --invert
+    pub invert: bool,
+    /// --threshold
+    pub threshold: Option<u8>,
+    /// --palette (auto or colours)
+    pub palette: Option<String>,
+    /// --background
+    pub background: Option<String>,
+    /// --background-tolerance
+    pub background_tolerance: Option<f64>,
+    /// --origin X,Y
+    pub origin: Option<String>,
+    /// --prime-mm
+    pub prime_mm: Option<f64>,
+    /// --min-run-mm
+    pub min_run_mm: Option<f64>,
+    /// --connect-mm
+    pub connect_mm: Option<f64>,
+}
+
+fn nonempty(s: &Option<String>) -> Option<String> {
+    s.as_ref()
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+}
+
+impl SliceForm {
+    /// The CLI's arguments for these options (so the CLI's checks apply as they are).
+    pub fn to_args(&self) -> ApiResult<SliceArgs> {
+        use clap::ValueEnum;
+        let rotate = match nonempty(&self.rotate) {
+            None => Default::default(),
+            Some(r) => ValueEnum::from_str(&r, true)
+                .map_err(|_| ApiError::bad(format!("rotate {r:?}: choose 0, 90, 180 or 270")))?,
+        };
+        let mirror = match nonempty(&self.mirror) {
+            None => crate::slicer::image::Mirror::None,
+            Some(m) => ValueEnum::from_str(&m, true)
+                .map_err(|_| ApiError::bad(format!("mirror {m:?}: choose none, x or y")))?,
+        };
+        let d = slicer::Limits::default();
+        Ok(SliceArgs {
+            designs: Vec::new(),
+            config: PathBuf::new(),
+            out: None,
+            gcode: None,
+            gcode_style: "run".into(),
+            gcode_dialect: "plain".into(),
+            gcode_ports: None,
+            preview: None,
+            preview_layer: None,
+            layers: self.layers,
+            width_mm: self.width_mm,
+            height_mm: self.height_mm,
+            rotate,
+            mirror,
+            invert: self.invert,
+            threshold: self.threshold.unwrap_or(150),
+            palette: nonempty(&self.palette),
+            background: nonempty(&self.background),
+            background_tolerance: self.background_tolerance.unwrap_or(40.0),
+            origin: nonempty(&self.origin),
+            prime_mm: self.prime_mm,
+            min_run_mm: self.min_run_mm.unwrap_or(0.1),
+            connect_mm: self.connect_mm,
+            max_pixels: d.max_pixels,
+            max_segments: d.max_segments,
+            max_triangles: d.max_triangles,
+            max_3mf_mb: d.max_3mf_bytes >> 20,
+        })
+    }
+}
+
+/// An uploaded design file: the name the user gave it and its bytes.
+pub struct Upload {
+    /// The file name as uploaded.
+    pub name: String,
+    /// Its content.
+    pub bytes: Vec<u8>,
+}
+
+/// A file name safe to write in our temporary folder (letters, digits, `._-`), keeping
+/// the extension the slicer goes by.
+fn safe_name(name: &str, i: usize) -> String {
+    let base = Path::new(name)
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("design");
+    let clean: String = base
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let clean = clean.trim_start_matches('.');
+    if clean.is_empty() {
+        format!("design-{i}")
+    } else {
+        clean.to_string()
+    }
+}
+
+/// Slices uploaded designs for `config` with `form`'s options. Blocking: run it off the
+/// async threads.
+pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    if uploads.is_empty() {
+        return Err(ApiError::bad(
+            "choose a design: an image, one STL per material, or a 3MF",
+        ));
+    }
+    let args = form.to_args()?;
+    let mut opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
+    opts.progress = false;
+    let dir = tempfile::tempdir()
+        .map_err(|e| ApiError::internal(format!("cannot create a temporary folder: {e}")))?;
+    let mut paths = Vec::new();
+    for (i, u) in uploads.iter().enumerate() {
+        let mut name = safe_name(&u.name, i);
+        if paths
+            .iter()
+            .any(|p: &PathBuf| p.file_name().is_some_and(|n| n == name.as_str()))
+        {
+            name = format!("{i}-{name}");
+        }
+        let path = dir.path().join(&name);
+        std::fs::write(&path, &u.bytes)
+            .map_err(|e| ApiError::internal(format!("cannot keep the upload {name}: {e}")))?;
+        paths.push(path);
+    }
+    // The slicer names the files in its messages: the user's names, not our folder's.
+    let ours = format!("{}/", dir.path().display());
+    let mut sliced = slicer::slice_files(&paths, config, &opts)
+        .map_err(|e| ApiError::bad(e.to_string().replace(&ours, "")))?;
+    sliced.name = sliced.name.replace(&ours, "");
+    Ok(sliced)
+}
+
+/// The toolpath as the browser draws it: polylines per layer and material (travel
+/// moves with material -1), coordinates in mm.
+#[derive(Debug, Clone, Serialize)]
+pub struct Toolpath {
+    /// [x0, y0, x1, y1] of everything drawn, mm.
+    pub bounds: [f64; 4],
+    /// Layers (the priming bead's is layer 0).
+    pub layers: usize,
+    /// The polylines.
+    pub paths: Vec<Polyline>,
+    /// Command at which each polyline starts.
+    pub starts: Vec<u32>,
+    /// Command after each polyline's last (for drawing a print's progress).
+    pub ends: Vec<u32>,
+    /// Bead width, mm.
+    pub bead_mm: f64,
+    /// Points were thinned to keep the page responsive.
+    pub simplified: bool,
+}
+
+/// One run of moves of the same kind.
+#[derive(Debug, Clone, Serialize)]
+pub struct Polyline {
+    /// Layer.
+    pub l: usize,
+    /// Material (inlet), or -1 for travel.
+    pub m: i32,
+    /// x0, y0, x1, y1, ... in mm (rounded to 1 µm).
+    pub p: Vec<f64>,
+}
+
+/// Most points sent to the browser for one toolpath.
+const MAX_POINTS: usize = 400_000;
+
+/// The toolpath of a job's commands, walked as the preview picture walks it.
+pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolpath {
+    let prints = commands
+        .iter()
+        .filter(|c| matches!(c, Command::Print { .. } | Command::Travel { .. }))
+        .count();
+    let stride = prints.div_ceil(MAX_POINTS).max(1);
+    let mm = |v: i32| (v as f64 * 1e-3 * 1000.0).round() / 1000.0;
+    let mut at = [start_um[0], start_um[1]];
+    let mut z = start_um[2];
+    let mut layer = 0usize;
+    let mut paths: Vec<Polyline> = Vec::new();
+    let mut ends = Vec::new();
+    let mut starts = Vec::new();
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    let mut n = 0usize;
+    let mut tail: Option<[f64; 2]> = None;
+    for (ci, c) in commands.iter().enumerate() {
+        let (to, m) = match *c {
+            Command::Print { dx, dy, material } => (
+                [at[0].saturating_add(dx), at[1].saturating_add(dy)],
+                material as i32,
+            ),
+            Command::Travel { x, y, z: tz } => {
+                if tz > z {
+                    layer += 1;
+                    z = tz;
+                }
+                ([x, y], -1)
+            }
+            Command::Layer { z: tz } => {
+                if tz > z {
+                    layer += 1;
+                    z = tz;
+                }
+                continue;
+            }
+            _ => continue,
+        };
+        n += 1;
+        let same = paths.last().is_some_and(|p| p.l == layer && p.m == m);
+        if !same {
+            // The previous run ends where it ended, thinned or not.
+            if let (Some(p), Some(t)) = (paths.last_mut(), tail.take()) {
+                p.p.extend_from_slice(&t);
+            }
+            paths.push(Polyline {
+                l: layer,
+                m,
+                p: vec![mm(at[0]), mm(at[1])],
+            });
+            starts.push(ci as u32);
+            ends.push(ci as u32);
+        }
+        if let (Some(p), Some(e)) = (paths.last_mut(), ends.last_mut()) {
+            if n.is_multiple_of(stride) || m < 0 {
+                p.p.push(mm(to[0]));
+                p.p.push(mm(to[1]));
+                tail = None;
+            } else {
+                tail = Some([mm(to[0]), mm(to[1])]);
+            }
+            *e = ci as u32 + 1;
+        }
+        for a in 0..2 {
+            let v = mm(to[a]);
+            lo[a] = lo[a].min(v);
+            hi[a] = hi[a].max(v);
+        }
+        at = to;
+    }
+    if let (Some(p), Some(t)) = (paths.last_mut(), tail) {
+        p.p.extend_from_slice(&t);
+    }
+    if !lo[0].is_finite() {
+        lo = [0.0; 2];
+        hi = [1.0; 2];
+    }
+    Toolpath {
+        bounds: [lo[0], lo[1], hi[0], hi[1]],
+        layers: layer + 1,
+        paths,
+        starts,
+        ends,
+        bead_mm,
+        simplified: stride > 1,
+    }
+}
+
+/// The job's figures, shown under the preview.
+#[derive(Debug, Clone, Serialize)]
+pub struct Figures {
+    /// Design name.
+    pub name: String,
+    /// Print segments.
+    pub segments: u32,
+    /// Material switches.
+    pub switches: usize,
+    /// Layers.
+    pub layers: usize,
+    /// Beads.
+    pub beads: usize,
+    /// Size on the plate, mm.
+    pub size_mm: [f64; 2],
+    /// Printed length (priming included), mm.
+    pub print_mm: f64,
+    /// Travel length, mm.
+    pub travel_mm: f64,
+    /// Job file size, bytes.
+    pub job_bytes: usize,
+    /// Print time estimated from lengths and speeds (no acceleration, no switch waits), s.
+    pub est_time_s: f64,
+    /// Commands in the job.
+    pub commands: usize,
+}
+
+/// The figures of a sliced job on `config`.
+pub fn figures(s: &Sliced, config: &Config) -> Figures {
+    let st = &s.stats;
+    let print = st.print_mm + st.prime_mm;
+    Figures {
+        name: s.name.clone(),
+        segments: s.header.print_segments,
+        switches: st.switches,
+        layers: st.layers,
+        beads: st.beads,
+        size_mm: s.size_mm,
+        print_mm: print,
+        travel_mm: st.travel_mm,
+        job_bytes: s.to_bytes().len(),
+        est_time_s: print / (config.motion.print_speed_mm_s as f64).max(1e-3)
+            + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3),
+        commands: s.commands.len(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seed() -> &'static str {
+        BUNDLED[0].1
+    }
+
+    fn edit(path: &str, raw: &str) -> Vec<Field> {
+        vec![Field {
+            path: path.into(),
+            raw: raw.into(),
+        }]
+    }
+
+    #[test]
+    fn bundled_configs_check_with_derived_figures() {
+        for (name, text) in BUNDLED {
+            let c = check(text).unwrap_or_else(|e| panic!("{name}: {}", e.error));
+            assert!(c.fields.len() > 10, "{name}: {} fields", c.fields.len());
+        }
+        let c = check(seed()).expect("seed config");
+        let s = c.derived.figures.iter().find(|f| f.0 == "bead section S");
+        assert_eq!(s.map(|f| f.1.as_str()), Some("0.4800 mm²"));
+        assert!(c
+            .fields
+            .iter()
+            .any(|f| f.path == "inlet[1].pressure_kpa" && f.raw == "\"auto\""));
+    }
+
+    #[test]
+    fn a_validation_error_names_its_field() {
+        let text = apply(seed(), &edit("channel.line_pitch_mm", "-1")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.line_pitch_mm"),
+            "{}",
+            e.error
+        );
+        assert!(e.error.contains("must not be negative"), "{}", e.error);
+        // One element of a list: the field is the list.
+        let text = apply(
+            seed(),
+            &edit("motion.max_accel_mm_s2", "[2000.0, -5.0, 200.0]"),
+        )
+        .expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("motion.max_accel_mm_s2"),
+            "{}",
+            e.error
+        );
+    }
+
+    #[test]
+    fn a_wrong_type_or_no_value_names_its_field() {
+        let text = apply(seed(), &edit("channel.layer_height_mm", "\"thick\"")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.layer_height_mm"),
+            "{}",
+            e.error
+        );
+        let e = apply(seed(), &edit("channel.layer_height_mm", "0.6 mm")).expect_err("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("channel.layer_height_mm"),
+            "{}",
+            e.error
+        );
+        let e = apply(seed(), &edit("inlet[1].material", "\"x")).expect_err("refused");
+        assert_eq!(e.field.as_deref(), Some("inlet[1].material"), "{}", e.error);
+        let e = apply(seed(), &edit("inlet[7].material", "\"x\"")).expect_err("refused");
+        assert!(e.error.contains("no such field"), "{}", e.error);
+        let text =
+            apply(seed(), &edit("inlet[1].valve_open_delay_ms", "\"soon\"")).expect("applies");
+        let e = check(&text).err().expect("refused");
+        assert_eq!(
+            e.field.as_deref(),
+            Some("inlet[1].valve_open_delay_ms"),
+            "{}",
+            e.error
+        );
+    }
+
+    #[test]
+    fn edits_round_trip() {
+        let text = apply(seed(), &edit("motion.print_speed_mm_s", "12.5")).expect("applies");
+        let c = check(&text).expect("valid");
+        assert_eq!(c.config.motion.print_speed_mm_s, 12.5);
+        let f = c
+            .fields
+            .iter()
+            .find(|f| f.path == "motion.print_speed_mm_s");
+        assert_eq!(f.map(|f| f.raw.as_str()), Some("12.5"));
+    }
+
+    #[test]
+    fn one_stl_per_material_slices() {
+        let c = check(seed()).expect("config");
+        let uploads: Vec<Upload> = DESIGNS[2..]
+            .iter()
+            .map(|(n, b)| Upload {
+                name: n.to_string(),
+                bytes: b.to_vec(),
+            })
+            .collect();
+        let form = SliceForm::default();
+        let s = slice(&uploads, &c.config, &form).expect("slices");
+        assert_eq!(s.name, "cube-shell.stl + cube-ball.stl");
+        let f = figures(&s, &c.config);
+        assert!(f.segments > 10 && f.switches > 0, "{f:?}");
+        let e = slice(&[], &c.config, &form).err().map(|e| e.error);
+        assert!(e.is_some_and(|e| e.contains("choose a design")));
+    }
+
+    #[test]
+    fn toolpath_groups_runs_by_layer_and_material() {
+        let cmds = [
+            Command::Travel {
+                x: 1000,
+                y: 1000,
+                z: 800,
+            },
+            Command::Print {
+                dx: 2000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 2000,
+                dy: 0,
+                material: 0,
+            },
+            Command::Print {
+                dx: 0,
+                dy: 1000,
+                material: 1,
+            },
+            Command::Travel {
+                x: 0,
+                y: 0,
+                z: 1400,
+            },
+            Command::Print {
+                dx: 500,
+                dy: 0,
+                material: 1,
+            },
+            Command::End,
+        ];
+        let t = toolpath(&cmds, [0, 0, 800], 0.8);
+        let kinds: Vec<(usize, i32)> = t.paths.iter().map(|p| (p.l, p.m)).collect();
+        assert_eq!(kinds, [(0, -1), (0, 0), (0, 1), (1, -1), (1, 1)]);
+        assert_eq!(t.paths[1].p, [1.0, 1.0, 3.0, 1.0, 5.0, 1.0]);
+        assert_eq!(t.starts, [0, 1, 3, 4, 5]);
+        assert_eq!(t.ends, [1, 3, 4, 5, 6]);
+        assert_eq!(t.bounds, [0.0, 0.0, 5.0, 2.0]);
+        assert_eq!(t.layers, 2);
+        assert!(!t.simplified);
+    }
+}

@@ -1,0 +1,539 @@
+//! The dashboard's HTTP API and pages: the router, and thin handlers that parse the
+//! request, hand the work to `design`, `simulate` or a board's worker (blocking work off
+//! the async threads), and answer JSON, files, or server-sent events (simulation progress,
+//! board status ten times a second). Every failure is an `ApiError` the page shows.
+
+use super::assets;
+use super::boards::{Order, View};
+use super::design::{self, Field, SliceForm, Upload};
+use super::error::{ApiError, ApiResult};
+use super::simulate::{self, SimRun};
+use super::state::{lock, AppState, JobEntry};
+use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
+use axum::http::header;
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use futures_util::stream::Stream;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+type St = State<Arc<AppState>>;
+
+/// The router of every page and API call.
+pub fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/", get(assets::index))
+        .route("/assets/app.js", get(assets::js))
+        .route("/assets/app.css", get(assets::css))
+        .route("/api/info", get(info))
+        .route("/api/configs/{i}", get(config_get))
+        .route("/api/config/check", post(config_check))
+        .route("/api/designs/{i}", get(bundled_design))
+        .route("/api/slice", post(slice))
+        .route("/api/jobs/{id}", get(job_get))
+        .route("/api/jobs/{id}/{file}", get(job_file))
+        .route("/api/jobs/{id}/simulate", post(sim_start))
+        .route("/api/sims/{id}", get(sim_get))
+        .route("/api/sims/{id}/events", get(sim_events))
+        .route("/api/sims/{id}/{file}", get(sim_file))
+        .route("/api/calibrate/rheology", post(calibrate_rheology))
+        .route("/api/boards/events", get(board_events))
+        .route("/api/boards/{id}/{action}", post(board_action))
+        .fallback(|| async { ApiError::missing("no such page") })
+        .layer(DefaultBodyLimit::max(super::MAX_UPLOAD))
+        .with_state(state)
+}
+
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> ApiResult<T> + Send + 'static,
+) -> ApiResult<T> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ApiError::internal(format!("the work stopped unexpectedly: {e}")))?
+}
+
+async fn info(State(st): St) -> Json<serde_json::Value> {
+    Json(json!({
+        "configs": st.configs.iter().map(|c| c.name.clone()).collect::<Vec<_>>(),
+        "designs": design::DESIGNS.iter().map(|d| d.0).collect::<Vec<_>>(),
+        "max_upload_mb": super::MAX_UPLOAD >> 20,
+        "demo_job": st.demo_job,
+        "boards": st.boards.len(),
+    }))
+}
+
+#[derive(Serialize)]
+struct ConfigView {
+    name: String,
+    text: String,
+    fields: Vec<Field>,
+    derived: Vec<(String, String)>,
+}
+
+async fn config_get(State(st): St, Path(i): Path<usize>) -> ApiResult<Json<ConfigView>> {
+    let c = st
+        .configs
+        .get(i)
+        .ok_or_else(|| ApiError::missing("no such config"))?;
+    let checked = design::check(&c.text)?;
+    Ok(Json(ConfigView {
+        name: c.name.clone(),
+        text: checked.text,
+        fields: checked.fields,
+        derived: checked.derived.figures,
+    }))
+}
+
+#[derive(Deserialize)]
+struct CheckReq {
+    text: String,
+    #[serde(default)]
+    edits: Vec<Field>,
+}
+
+async fn config_check(Json(r): Json<CheckReq>) -> ApiResult<Json<ConfigView>> {
+    let text = design::apply(&r.text, &r.edits)?;
+    let checked = design::check(&text)?;
+    Ok(Json(ConfigView {
+        name: String::new(),
+        text: checked.text,
+        fields: checked.fields,
+        derived: checked.derived.figures,
+    }))
+}
+
+async fn bundled_design(Path(i): Path<usize>) -> ApiResult<Response> {
+    let (name, bytes) = design::DESIGNS
+        .get(i)
+        .ok_or_else(|| ApiError::missing("no such design"))?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, mime(name)),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{name}\""),
+            ),
+        ],
+        bytes.to_vec(),
+    )
+        .into_response())
+}
+
+fn mime(name: &str) -> String {
+    match name.rsplit('.').next().unwrap_or("") {
+        "png" => "image/png",
+        "csv" => "text/csv",
+        "toml" | "gcode" | "txt" => "text/plain; charset=utf-8",
+        "stl" => "model/stl",
+        _ => "application/octet-stream",
+    }
+    .into()
+}
+
+#[derive(Serialize)]
+struct JobView<'a> {
+    id: u64,
+    figures: &'a design::Figures,
+    toolpath: &'a design::Toolpath,
+    materials: Vec<String>,
+}
+
+fn job_json(e: &JobEntry) -> Response {
+    Json(JobView {
+        id: e.id,
+        figures: &e.figures,
+        toolpath: &e.toolpath,
+        materials: e
+            .config
+            .inlets
+            .iter()
+            .map(|i| i.material.to_string())
+            .collect(),
+    })
+    .into_response()
+}
+
+async fn slice(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
+    let mut uploads = Vec::new();
+    let mut text = None;
+    let mut form = SliceForm::default();
+    while let Some(field) = mp.next_field().await? {
+        match field.name().unwrap_or("") {
+            "design" => {
+                let name = field.file_name().unwrap_or("design").to_string();
+                let bytes = field.bytes().await?;
+                if !bytes.is_empty() {
+                    uploads.push(Upload {
+                        name,
+                        bytes: bytes.to_vec(),
+                    });
+                }
+            }
+            "config" => text = Some(field.text().await?),
+            "options" => {
+                let t = field.text().await?;
+                form = serde_json::from_str(&t)
+                    .map_err(|e| ApiError::bad(format!("slicing options: {e}")))?;
+            }
+            _ => {}
+        }
+    }
+    let text = text.ok_or_else(|| ApiError::bad("choose a machine config"))?;
+    let checked = design::check(&text)?;
+    let st2 = st.clone();
+    let entry = blocking(move || {
+        let sliced = design::slice(&uploads, &checked.config, &form)?;
+        Ok(st2.add_job(checked.config, checked.text, sliced))
+    })
+    .await?;
+    Ok(job_json(&entry))
+}
+
+fn job_of(st: &AppState, id: u64) -> ApiResult<Arc<JobEntry>> {
+    st.job(id).ok_or_else(|| {
+        ApiError::missing(format!(
+            "job {id} is no longer kept (the dashboard keeps the last {}); slice it again",
+            super::state::KEEP
+        ))
+    })
+}
+
+async fn job_get(State(st): St, Path(id): Path<u64>) -> ApiResult<Response> {
+    let e = job_of(&st, id)?;
+    Ok(job_json(&e))
+}
+
+fn stem(e: &JobEntry) -> String {
+    let s: String = e
+        .figures
+        .name
+        .split(['.', ' '])
+        .next()
+        .unwrap_or("job")
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
+        .collect();
+    if s.is_empty() {
+        "job".into()
+    } else {
+        s
+    }
+}
+
+fn download(name: String, bytes: Vec<u8>) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, mime(&name)),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{name}\""),
+            ),
+        ],
+        bytes,
+    )
+        .into_response()
+}
+
+fn png(img: &image::RgbImage) -> ApiResult<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
+    Ok(out)
+}
+
+async fn job_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiResult<Response> {
+    let e = job_of(&st, id)?;
+    let stem = stem(&e);
+    match file.as_str() {
+        "job.dlp" => Ok(download(format!("{stem}.dlp"), e.sliced.to_bytes())),
+        "config.toml" => Ok(download(
+            format!("{stem}-machine.toml"),
+            e.config_text.clone().into_bytes(),
+        )),
+        "preview.png" => {
+            let bytes = blocking(move || {
+                let img = crate::slicer::preview::draw(
+                    &e.sliced.commands,
+                    e.sliced.header.start_um,
+                    &crate::slicer::preview::PreviewOptions {
+                        bead_mm: e.config.channel.line_pitch_mm as f64,
+                        ..Default::default()
+                    },
+                );
+                png(&img)
+            })
+            .await?;
+            Ok(download(format!("{stem}-toolpath.png"), bytes))
+        }
+        "job.gcode" => {
+            let text = blocking(move || {
+                let names: Vec<String> = e
+                    .config
+                    .inlets
+                    .iter()
+                    .map(|i| i.material.to_string())
+                    .collect();
+                crate::slicer::gcode_exec::export(
+                    &e.config,
+                    &e.sliced.commands,
+                    e.sliced.header.start_um,
+                    e.sliced.header.initial_material,
+                    &names,
+                    &crate::slicer::gcode_exec::RunExport::default(),
+                )
+                .map(|(t, _)| t)
+                .map_err(|e| ApiError::bad(e.to_string()))
+            })
+            .await?;
+            Ok(download(format!("{stem}.gcode"), text.into_bytes()))
+        }
+        _ => Err(ApiError::missing("no such file")),
+    }
+}
+
+async fn sim_start(State(st): St, Path(id): Path<u64>) -> ApiResult<Json<serde_json::Value>> {
+    let e = job_of(&st, id)?;
+    let run = Arc::new(SimRun::new());
+    let sim = st.add_sim(run.clone());
+    let job = dollop_sim::Job {
+        start_um: e.sliced.header.start_um,
+        initial_material: e.sliced.header.initial_material,
+        commands: e.sliced.commands.clone(),
+    };
+    std::thread::Builder::new()
+        .name(format!("sim-{sim}"))
+        .spawn(move || {
+            // A panic in the run must not leave the page waiting for ever.
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate::simulate(&run, &e.config, &job)));
+            if r.is_err() {
+                *lock(&run.state) = simulate::SimState::Failed("the simulation stopped on an internal error (a bug: please report it with the design and config)".into());
+            }
+        })
+        .map_err(|e| ApiError::internal(format!("cannot start the simulation: {e}")))?;
+    Ok(Json(json!({ "sim": sim })))
+}
+
+fn sim_of(st: &AppState, id: u64) -> ApiResult<Arc<SimRun>> {
+    st.sim(id).ok_or_else(|| {
+        ApiError::missing(format!("simulation {id} is no longer kept; run it again"))
+    })
+}
+
+fn outcome(run: &SimRun) -> ApiResult<Arc<simulate::Outcome>> {
+    match run.outcome() {
+        Ok(Some(o)) => Ok(o),
+        Ok(None) => Err(ApiError::conflict("the simulation is still running")),
+        Err(m) => Err(ApiError::bad(format!("the simulation failed: {m}"))),
+    }
+}
+
+async fn sim_get(State(st): St, Path(id): Path<u64>) -> ApiResult<Response> {
+    let o = outcome(&*sim_of(&st, id)?)?;
+    Ok(Json(json!({
+        "report": o.report,
+        "figures": o.figures,
+        "series": o.series,
+    }))
+    .into_response())
+}
+
+async fn sim_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiResult<Response> {
+    let o = outcome(&*sim_of(&st, id)?)?;
+    match file.as_str() {
+        "heatmap.png" => {
+            Ok(([(header::CONTENT_TYPE, "image/png")], o.heatmap_png.clone()).into_response())
+        }
+        "trace.csv" => {
+            let path = o.trace.path().to_path_buf();
+            let bytes = tokio::fs::read(&path)
+                .await
+                .map_err(|e| ApiError::internal(format!("cannot read the trace: {e}")))?;
+            Ok(download(format!("trace-{id}.csv"), bytes))
+        }
+        "report.txt" => Ok(download(
+            format!("report-{id}.txt"),
+            o.report.clone().into_bytes(),
+        )),
+        _ => Err(ApiError::missing("no such file")),
+    }
+}
+
+async fn sim_events(
+    State(st): St,
+    Path(id): Path<u64>,
+) -> ApiResult<Sse<impl Stream<Item = Result<Event, Infallible>>>> {
+    let run = sim_of(&st, id)?;
+    let stream = futures_util::stream::unfold(Some(run), |run| async move {
+        let run = run?;
+        tokio::time::sleep(Duration::from_millis(150)).await;
+        let permille = run.permille.load(std::sync::atomic::Ordering::Relaxed);
+        let ev = match run.outcome() {
+            Ok(None) => {
+                return Some((
+                    Ok(Event::default()
+                        .event("progress")
+                        .data(permille.to_string())),
+                    Some(run),
+                ))
+            }
+            Ok(Some(_)) => Event::default().event("done").data("1000"),
+            Err(m) => Event::default().event("failed").data(m),
+        };
+        Some((Ok(ev), None))
+    });
+    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+}
+
+#[derive(Deserialize)]
+struct TabQuery {
+    tab: String,
+}
+
+/// Marks a tab's status stream closed when the stream is dropped (the tab went away).
+struct TabGuard {
+    st: Arc<AppState>,
+    tab: String,
+}
+
+impl Drop for TabGuard {
+    fn drop(&mut self) {
+        self.st.tab_closed(&self.tab);
+    }
+}
+
+async fn board_events(
+    State(st): St,
+    Query(q): Query<TabQuery>,
+) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
+    st.tab_open(&q.tab);
+    let guard = TabGuard {
+        st: st.clone(),
+        tab: q.tab,
+    };
+    let stream = futures_util::stream::unfold(guard, |g| async move {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let views: Vec<View> =
+            g.st.boards
+                .iter()
+                .map(|b| b.view.borrow().clone())
+                .collect();
+        let controllers: Vec<Option<String>> =
+            g.st.boards
+                .iter()
+                .map(|b| lock(&b.controller).clone())
+                .collect();
+        let data = json!({ "boards": views, "controllers": controllers }).to_string();
+        Some((Ok(Event::default().event("boards").data(data)), g))
+    });
+    Sse::new(stream).keep_alive(KeepAlive::default())
+}
+
+#[derive(Deserialize, Default)]
+#[serde(default)]
+struct ActionReq {
+    tab: String,
+    force: bool,
+    job: Option<u64>,
+    axis: Option<String>,
+    mm: Option<f64>,
+    inlet: Option<u8>,
+    seconds: Option<f64>,
+}
+
+async fn board_action(
+    State(st): St,
+    Path((id, action)): Path<(usize, String)>,
+    Json(r): Json<ActionReq>,
+) -> ApiResult<Json<serde_json::Value>> {
+    let b = st
+        .board(id)
+        .ok_or_else(|| ApiError::missing(format!("there is no board {id}")))?;
+    if r.tab.is_empty() {
+        return Err(ApiError::bad(
+            "the page did not say which tab it is; reload it",
+        ));
+    }
+    // One tab commands a board at a time: another tab's orders are refused (its status
+    // stays visible) until the commanding tab closes or this one takes over.
+    {
+        let mut ctl = lock(&b.controller);
+        if let Some(owner) = ctl.as_ref() {
+            if *owner != r.tab && st.tab_alive(owner) && !r.force {
+                return Err(ApiError::conflict(
+                    "another tab or browser is commanding this board; its orders are not mixed with yours. Close that tab, or press Take control here",
+                ));
+            }
+        }
+        *ctl = Some(r.tab.clone());
+    }
+    let order = match action.as_str() {
+        "claim" => {
+            return Ok(Json(
+                json!({ "message": "this tab now commands the board" }),
+            ))
+        }
+        "send" => {
+            let id = r.job.ok_or_else(|| ApiError::bad("slice a job first"))?;
+            Order::Send(job_of(&st, id)?)
+        }
+        "start-next" => Order::StartNext,
+        "unqueue" => Order::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
+        "pause" => Order::Pause,
+        "resume" => Order::Resume,
+        "abort" => Order::Abort,
+        "home" => Order::Home,
+        "jog" => {
+            let axis = match r.axis.as_deref() {
+                Some("x") | Some("X") => dollop::Axis::X,
+                Some("y") | Some("Y") => dollop::Axis::Y,
+                Some("z") | Some("Z") => dollop::Axis::Z,
+                _ => return Err(ApiError::bad("jog: choose the axis x, y or z")),
+            };
+            Order::Jog(
+                axis,
+                r.mm.ok_or_else(|| ApiError::bad("jog: give a distance in mm"))?,
+            )
+        }
+        "valve" => Order::Valve(
+            r.inlet
+                .ok_or_else(|| ApiError::bad("valve test: choose an inlet"))?,
+            r.seconds.unwrap_or(1.0),
+        ),
+        other => return Err(ApiError::missing(format!("no board action {other:?}"))),
+    };
+    match b.order(order).await {
+        Ok(m) => Ok(Json(json!({ "message": m }))),
+        Err(m) => Err(ApiError::conflict(m)),
+    }
+}
+
+async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrate::Shown>> {
+    let mut data = None;
+    let mut kind = String::new();
+    while let Some(field) = mp.next_field().await? {
+        match field.name().unwrap_or("") {
+            "data" => {
+                let name = field.file_name().unwrap_or("data.csv").to_string();
+                data = Some((name, field.bytes().await?.to_vec()));
+            }
+            "kind" => kind = field.text().await?,
+            _ => {}
+        }
+    }
+    let (name, bytes) = data.ok_or_else(|| ApiError::bad("choose a measurement CSV"))?;
+    Ok(Json(
+        blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
+    ))
+}

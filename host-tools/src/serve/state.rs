@@ -1,0 +1,196 @@
+//! What the dashboard's handlers share: the configs offered, sliced jobs and simulations
+//! (a bounded number of each, oldest dropped first), the boards with their workers, and
+//! which browser tabs are open (for the one-tab-commands-a-board rule).
+
+use super::boards::{self, Board};
+use super::design::{self, Figures, Toolpath, Upload};
+use super::simulate::SimRun;
+use super::Args;
+use crate::slicer::Sliced;
+use anyhow::Context;
+use dollop::config::Config;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+/// Jobs (and simulations) kept; older ones are dropped from memory.
+pub const KEEP: usize = 32;
+
+/// A sliced job.
+pub struct JobEntry {
+    /// Its number.
+    pub id: u64,
+    /// The machine config it was sliced for.
+    pub config: Config,
+    /// That config as TOML.
+    pub config_text: String,
+    /// The job.
+    pub sliced: Sliced,
+    /// The toolpath the pages draw.
+    pub toolpath: Toolpath,
+    /// Its figures.
+    pub figures: Figures,
+}
+
+/// A config offered on the pages.
+pub struct ConfigChoice {
+    /// Name shown.
+    pub name: String,
+    /// TOML.
+    pub text: String,
+}
+
+/// Shared state.
+pub struct AppState {
+    /// Configs to choose from (`--config` first, then the bundled ones).
+    pub configs: Vec<ConfigChoice>,
+    jobs: Mutex<BTreeMap<u64, Arc<JobEntry>>>,
+    sims: Mutex<BTreeMap<u64, Arc<SimRun>>>,
+    next: AtomicU64,
+    /// The boards.
+    pub boards: Vec<Arc<Board>>,
+    /// Open status streams per tab.
+    tabs: Mutex<HashMap<String, usize>>,
+    /// The job `--demo` sliced at start.
+    pub demo_job: Option<u64>,
+}
+
+/// Locks, going on with the data if another thread panicked while holding it.
+pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl AppState {
+    /// Builds the state: reads `--config`, starts the board workers, slices the demo.
+    pub fn new(a: &Args) -> anyhow::Result<Self> {
+        let mut configs = Vec::new();
+        if let Some(p) = &a.config {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read config {}", p.display()))?;
+            design::check(&text).map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.error))?;
+            configs.push(ConfigChoice {
+                name: p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "machine.toml".into()),
+                text,
+            });
+        }
+        for (n, t) in design::BUNDLED {
+            configs.push(ConfigChoice {
+                name: format!("{n} (bundled)"),
+                text: t.to_string(),
+            });
+        }
+        let boards = boards::start_all(a);
+        let mut st = AppState {
+            configs,
+            jobs: Mutex::new(BTreeMap::new()),
+            sims: Mutex::new(BTreeMap::new()),
+            next: AtomicU64::new(1),
+            boards,
+            tabs: Mutex::new(HashMap::new()),
+            demo_job: None,
+        };
+        if a.demo {
+            let text = design::BUNDLED[0].1;
+            let checked =
+                design::check(text).map_err(|e| anyhow::anyhow!("demo config: {}", e.error))?;
+            let uploads = [Upload {
+                name: design::DESIGNS[0].0.into(),
+                bytes: design::DESIGNS[0].1.to_vec(),
+            }];
+            let form = design::SliceForm {
+                width_mm: Some(40.0),
+                ..Default::default()
+            };
+            let sliced = design::slice(&uploads, &checked.config, &form)
+                .map_err(|e| anyhow::anyhow!("demo design: {}", e.error))?;
+            st.demo_job = Some(st.add_job(checked.config, text.to_string(), sliced).id);
+        }
+        Ok(st)
+    }
+
+    /// A fresh number.
+    pub fn id(&self) -> u64 {
+        self.next.fetch_add(1, Ordering::Relaxed)
+    }
+
+    /// Keeps a sliced job; returns it.
+    pub fn add_job(&self, config: Config, config_text: String, sliced: Sliced) -> Arc<JobEntry> {
+        let toolpath = design::toolpath(
+            &sliced.commands,
+            sliced.header.start_um,
+            config.channel.line_pitch_mm as f64,
+        );
+        let figures = design::figures(&sliced, &config);
+        let e = Arc::new(JobEntry {
+            id: self.id(),
+            config,
+            config_text,
+            sliced,
+            toolpath,
+            figures,
+        });
+        let mut jobs = lock(&self.jobs);
+        jobs.insert(e.id, e.clone());
+        while jobs.len() > KEEP {
+            // The demo job stays.
+            let Some(old) = jobs.keys().copied().find(|k| Some(*k) != self.demo_job) else {
+                break;
+            };
+            jobs.remove(&old);
+        }
+        e
+    }
+
+    /// A job by number.
+    pub fn job(&self, id: u64) -> Option<Arc<JobEntry>> {
+        lock(&self.jobs).get(&id).cloned()
+    }
+
+    /// Keeps a simulation; returns its number.
+    pub fn add_sim(&self, run: Arc<SimRun>) -> u64 {
+        let id = self.id();
+        let mut sims = lock(&self.sims);
+        sims.insert(id, run);
+        while sims.len() > KEEP {
+            let Some(old) = sims.keys().next().copied() else {
+                break;
+            };
+            sims.remove(&old);
+        }
+        id
+    }
+
+    /// A simulation by number.
+    pub fn sim(&self, id: u64) -> Option<Arc<SimRun>> {
+        lock(&self.sims).get(&id).cloned()
+    }
+
+    /// A board by number.
+    pub fn board(&self, id: usize) -> Option<Arc<Board>> {
+        self.boards.get(id).cloned()
+    }
+
+    /// A tab opened a status stream.
+    pub fn tab_open(&self, tab: &str) {
+        *lock(&self.tabs).entry(tab.to_string()).or_insert(0) += 1;
+    }
+
+    /// A tab's status stream ended (the tab closed or went away).
+    pub fn tab_closed(&self, tab: &str) {
+        let mut tabs = lock(&self.tabs);
+        if let Some(n) = tabs.get_mut(tab) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                tabs.remove(tab);
+            }
+        }
+    }
+
+    /// The tab has a status stream open.
+    pub fn tab_alive(&self, tab: &str) -> bool {
+        lock(&self.tabs).contains_key(tab)
+    }
+}

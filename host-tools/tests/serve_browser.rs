@@ -1,0 +1,514 @@
+//! `dollop serve` in a real browser: Debian's headless Chromium driven through chromedriver
+//! (WebDriver, the `fantoccini` client) against the server started in-process. Covers a
+//! corrupt upload refused, a config error shown at its field, a bundled design uploaded
+//! through the file picker and sliced with its preview drawn, a simulation with its report
+//! and heatmap, a print on the simulated board followed to 100 % with the status pushed
+//! live, pause, resume and abort, a second tab refused until it takes control, and a
+//! rheology calibration applied to the config. Saves screenshots of the main pages under the target
+//! directory (`tmp/serve-screenshots`). Without chromedriver it says it skipped, except in
+//! CI (`CI=true`), where that is a failure.
+
+use dollop_host::serve;
+use fantoccini::{Client, ClientBuilder, Locator};
+use serde_json::{json, Value};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
+const CHROMIUM: &str = "/usr/bin/chromium";
+
+/// Kills chromedriver (and with it the browser) when the test ends, however it ends.
+struct Driver(Child);
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("no free port on 127.0.0.1")
+}
+
+fn shots_dir() -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("serve-screenshots");
+    std::fs::create_dir_all(&d).expect("cannot create the screenshot folder");
+    d
+}
+
+async fn shot(c: &Client, name: &str) {
+    let png = c.screenshot().await.expect("screenshot");
+    let path = shots_dir().join(name);
+    std::fs::write(&path, png).expect("cannot write the screenshot");
+    eprintln!("screenshot: {}", path.display());
+}
+
+/// Evaluates `expr` in the page until it is truthy; returns its value.
+async fn wait_for(c: &Client, expr: &str, secs: u64, what: &str) -> Value {
+    let end = Instant::now() + Duration::from_secs(secs);
+    let script = format!("return ({expr});");
+    let mut last;
+    loop {
+        match c.execute(&script, vec![]).await {
+            Ok(v) => {
+                let truthy = match &v {
+                    Value::Null => false,
+                    Value::Bool(b) => *b,
+                    Value::String(s) => !s.is_empty(),
+                    Value::Number(n) => n.as_f64().is_some_and(|x| x != 0.0),
+                    _ => true,
+                };
+                if truthy {
+                    return v;
+                }
+                last = v;
+            }
+            Err(e) => last = json!(e.to_string()),
+        }
+        if Instant::now() >= end {
+            shot(c, "failure.png").await;
+        }
+        assert!(
+            Instant::now() < end,
+            "waited {secs} s for {what} ({expr}); last value {last}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+async fn js(c: &Client, expr: &str) -> Value {
+    c.execute(&format!("return ({expr});"), vec![])
+        .await
+        .expect("script")
+}
+
+async fn click(c: &Client, css: &str) {
+    c.find(Locator::Css(css))
+        .await
+        .unwrap_or_else(|e| panic!("no {css} on the page: {e}"))
+        .click()
+        .await
+        .unwrap_or_else(|e| panic!("cannot click {css}: {e}"));
+}
+
+async fn choose_file(c: &Client, path: &Path) {
+    // A `multiple` picker adds to what it holds: empty it first, as a new choice does.
+    js(
+        c,
+        "(document.getElementById('design-files').value = '', true)",
+    )
+    .await;
+    c.find(Locator::Id("design-files"))
+        .await
+        .expect("file picker")
+        .send_keys(&path.display().to_string())
+        .await
+        .expect("choosing a file");
+}
+
+async fn board_field(c: &Client, key: &str) -> String {
+    js(
+        c,
+        &format!("document.querySelector('.board[data-board=\"0\"]').dataset.{key}"),
+    )
+    .await
+    .as_str()
+    .unwrap_or_default()
+    .to_string()
+}
+
+#[test]
+fn dashboard_in_a_real_browser() {
+    if !Path::new(CHROMEDRIVER).exists() || !Path::new(CHROMIUM).exists() {
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("{CHROMEDRIVER} or {CHROMIUM} missing in CI: apt-get install chromium chromium-driver");
+        }
+        eprintln!("skipped: {CHROMEDRIVER} or {CHROMIUM} not installed (apt-get install chromium chromium-driver)");
+        return;
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    rt.block_on(run());
+}
+
+async fn run() {
+    let _ = std::fs::remove_file(shots_dir().join("failure.png"));
+    // The server, in-process, on a free port; the simulated board 3 times real time.
+    let server = serve::start(serve::Args {
+        listen: "127.0.0.1:0".parse().expect("address"),
+        config: None,
+        boards: Vec::new(),
+        demo: false,
+        sim_speed: 3.0,
+        no_usb: true,
+        sim_boards: 2,
+    })
+    .await
+    .expect("server starts");
+    let base = format!("http://{}/", server.addr);
+
+    let port = free_port();
+    let _driver = Driver(
+        Command::new(CHROMEDRIVER)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromedriver starts"),
+    );
+    let profile = tempfile::tempdir().expect("profile folder");
+    let caps: serde_json::Map<String, Value> = json!({
+        "goog:chromeOptions": {
+            "binary": CHROMIUM,
+            "args": [
+                "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                "--disable-dev-shm-usage", "--window-size=1400,1000",
+                format!("--user-data-dir={}", profile.path().display()),
+            ]
+        }
+    })
+    .as_object()
+    .cloned()
+    .expect("capabilities");
+    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+    let url = format!("http://127.0.0.1:{port}");
+    let start = Instant::now();
+    let c = loop {
+        match ClientBuilder::new(connector.clone())
+            .capabilities(caps.clone())
+            .connect(&url)
+            .await
+        {
+            Ok(c) => break c,
+            Err(e) => {
+                assert!(
+                    start.elapsed() < Duration::from_secs(30),
+                    "chromedriver did not take a session: {e}"
+                );
+                tokio::time::sleep(Duration::from_millis(200)).await;
+            }
+        }
+    };
+    let result = tokio::time::timeout(Duration::from_secs(400), pages(&c, &base)).await;
+    let _ = c.close().await;
+    result.expect("the browser test took over 400 s");
+}
+
+async fn pages(c: &Client, base: &str) {
+    c.goto(base).await.expect("open the dashboard");
+    wait_for(
+        c,
+        "document.querySelectorAll('.field').length > 10",
+        20,
+        "the config editor",
+    )
+    .await;
+    let designs = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
+
+    // A corrupt upload is refused with a message naming the file.
+    let tmp = tempfile::tempdir().expect("temp folder");
+    let corrupt = tmp.path().join("corrupt.png");
+    std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nthis is not a picture").expect("write");
+    choose_file(c, &corrupt).await;
+    click(c, "#slice").await;
+    let msg = wait_for(c, "!document.getElementById('slice-error').hidden && document.getElementById('slice-error').textContent", 30, "the corrupt upload's message").await;
+    let msg = msg.as_str().unwrap_or_default();
+    assert!(
+        msg.contains("corrupt.png") && msg.contains("unreadable image"),
+        "{msg}"
+    );
+    shot(c, "corrupt-upload.png").await;
+
+    // An upload over the stated limit is refused with the limit named.
+    js(
+        c,
+        "(setFiles([new File([new Uint8Array(65 * 1024 * 1024)], 'huge.png')]), true)",
+    )
+    .await;
+    click(c, "#slice").await;
+    let msg = wait_for(c, "!document.getElementById('slice-error').hidden && document.getElementById('slice-error').textContent.includes('64 MiB') && document.getElementById('slice-error').textContent", 60, "the oversize upload's message").await;
+    eprintln!("oversize upload: {msg}");
+
+    // A config error is shown at its field.
+    click(c, "#config-details summary").await;
+    let pitch = c
+        .find(Locator::Css(
+            ".field[data-path=\"channel.line_pitch_mm\"] input",
+        ))
+        .await
+        .expect("the line pitch field");
+    pitch.clear().await.expect("clear");
+    pitch.send_keys("-1").await.expect("type");
+    click(c, "#config-check").await;
+    let err = wait_for(
+        c,
+        "document.querySelector('.field.has-error[data-path=\"channel.line_pitch_mm\"] .field-error')?.textContent",
+        20,
+        "the error at channel.line_pitch_mm",
+    )
+    .await;
+    assert!(
+        err.as_str()
+            .unwrap_or_default()
+            .contains("must not be negative"),
+        "{err}"
+    );
+    assert_eq!(
+        js(c, "document.querySelectorAll('.field.has-error').length").await,
+        json!(1)
+    );
+    shot(c, "config-error.png").await;
+    pitch.clear().await.expect("clear");
+    pitch.send_keys("0.8").await.expect("type");
+    click(c, "#config-check").await;
+    wait_for(c, "document.querySelectorAll('.field.has-error').length === 0 && document.querySelectorAll('#config-derived tr').length > 3", 20, "the error cleared and derived figures shown").await;
+    click(c, "#config-details summary").await;
+
+    // A bundled design through the file picker, sliced 12 mm wide: the preview is drawn.
+    choose_file(c, &designs.join("chessboard.png")).await;
+    click(c, "#options-details summary").await;
+    c.find(Locator::Id("opt-width_mm"))
+        .await
+        .expect("width option")
+        .send_keys("12")
+        .await
+        .expect("type");
+    click(c, "#slice").await;
+    let segs = wait_for(
+        c,
+        "document.querySelector('.fig-print-segments')?.textContent",
+        60,
+        "the job's figures",
+    )
+    .await;
+    let segs: u64 = segs.as_str().unwrap_or("0").parse().unwrap_or(0);
+    assert!(segs > 10, "print segments {segs}");
+    let name = js(c, "document.getElementById('job-name').textContent").await;
+    assert!(
+        name.as_str().unwrap_or_default().contains("chessboard.png"),
+        "{name}"
+    );
+    // The canvas holds both materials' colours (brown and yellow beads).
+    let colours = js(c, "(() => { const c = document.getElementById('preview'); const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let a = 0, b = 0; for (let i = 0; i < d.length; i += 4) { if (d[i] === 122 && d[i+1] === 72 && d[i+2] === 36) a++; if (d[i] === 236 && d[i+1] === 190 && d[i+2] === 70) b++; } return [a, b]; })()").await;
+    let (a, b) = (
+        colours[0].as_u64().unwrap_or(0),
+        colours[1].as_u64().unwrap_or(0),
+    );
+    assert!(
+        a > 500 && b > 500,
+        "preview pixels of material 0: {a}, material 1: {b}"
+    );
+    let layers = js(c, "document.getElementById('layer-select').options.length").await;
+    assert!(layers.as_u64().unwrap_or(0) >= 2, "layer choices {layers}");
+    js(c, "(window.scrollTo(0, 0), true)").await;
+    shot(c, "design.png").await;
+
+    // Simulate: progress, then the report and the heatmap.
+    click(c, "#nav-simulate").await;
+    click(c, "#simulate").await;
+    wait_for(
+        c,
+        "document.getElementById('sim-report').textContent.includes('print time')",
+        120,
+        "the simulation report",
+    )
+    .await;
+    wait_for(c, "document.getElementById('heatmap').complete && document.getElementById('heatmap').naturalWidth > 50", 20, "the heatmap").await;
+    assert_eq!(
+        js(c, "document.getElementById('sim-progress').value").await,
+        json!(1000)
+    );
+    let report = js(c, "document.getElementById('sim-report').textContent").await;
+    assert!(
+        report.as_str().unwrap_or_default().contains("boundaries"),
+        "{report}"
+    );
+    assert!(js(c, "document.getElementById('dl-trace') !== null").await == json!(true));
+    shot(c, "simulate.png").await;
+
+    // Print on the simulated board: the status is pushed live and reaches 100 %.
+    click(c, "#nav-print").await;
+    wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"0\"]')?.dataset.activity)", 30, "the simulated board, connected").await;
+    // A second simulated board: listed with its own state and an empty queue.
+    wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"1\"]')?.dataset.activity)", 30, "the second simulated board").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
+    let t = Instant::now();
+    let mut progress_seen = std::collections::BTreeSet::new();
+    let mut seq_at_printing = None;
+    let mut shot_taken = false;
+    loop {
+        let p: f64 = board_field(c, "progress").await.parse().unwrap_or(0.0);
+        let activity = board_field(c, "activity").await;
+        let seq: u64 = board_field(c, "seq").await.parse().unwrap_or(0);
+        if activity == "printing" {
+            progress_seen.insert((p * 1000.0) as u64);
+            seq_at_printing.get_or_insert((Instant::now(), seq));
+            if !shot_taken && p > 0.3 {
+                shot(c, "print.png").await;
+                shot_taken = true;
+            }
+        }
+        if p >= 1.0 && activity.starts_with("finished") {
+            break;
+        }
+        assert!(
+            t.elapsed() < Duration::from_secs(180),
+            "the print did not finish: {activity} at {p}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let (t0, s0) = seq_at_printing.expect("the board was seen printing");
+    let s1: u64 = board_field(c, "seq").await.parse().unwrap_or(0);
+    let rate = (s1 - s0) as f64 / t0.elapsed().as_secs_f64();
+    eprintln!(
+        "print followed: {} distinct progress values while printing, status updates {rate:.1}/s",
+        progress_seen.len()
+    );
+    assert!(
+        progress_seen.len() >= 5,
+        "progress values seen: {progress_seen:?}"
+    );
+    assert!(rate >= 5.0, "status pushed {rate:.1} times a second");
+    let live = js(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .live').textContent",
+    )
+    .await;
+    assert!(
+        live.as_str().unwrap_or_default().starts_with("100.0 %"),
+        "{live}"
+    );
+    if !shot_taken {
+        shot(c, "print.png").await;
+    }
+
+    // Pause, resume, abort: the same job again (queued behind the finished one, started by
+    // Start next once the plate is clear).
+    click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"] .queue').textContent.includes('chessboard')", 20, "the job queued").await;
+    click(
+        c,
+        ".board[data-board=\"0\"] button[data-action=\"start-next\"]",
+    )
+    .await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'printing' && Number(document.querySelector('.board[data-board=\"0\"]').dataset.progress) > 0.05", 60, "the second print running").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"pause\"]").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'paused'",
+        30,
+        "the print paused",
+    )
+    .await;
+    let p_paused: f64 = board_field(c, "progress").await.parse().unwrap_or(0.0);
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let p_later: f64 = board_field(c, "progress").await.parse().unwrap_or(0.0);
+    assert_eq!(p_paused, p_later, "progress moved while paused");
+    shot(c, "paused.png").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"resume\"]").await;
+    // Resumed, it goes on from where it paused (the pause ended a bead, so what is left
+    // may be short): it runs to the end.
+    wait_for(c, &format!("document.querySelector('.board[data-board=\"0\"]').dataset.activity !== 'paused' && Number(document.querySelector('.board[data-board=\"0\"]').dataset.progress) > {p_paused}"), 30, "the print resumed").await;
+    // A bead ends the pause: the chessboard is two long beads, so the print may be near
+    // its end now. Let it finish, then abort a third run early.
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity.startsWith('finished')", 60, "the resumed print finished").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"] .queue').textContent.includes('chessboard')", 20, "the job queued again").await;
+    click(
+        c,
+        ".board[data-board=\"0\"] button[data-action=\"start-next\"]",
+    )
+    .await;
+    wait_for(c, "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'printing' && Number(document.querySelector('.board[data-board=\"0\"]').dataset.progress) > 0.05", 60, "the third print running").await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"abort\"]").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"]').dataset.activity === 'aborted'",
+        30,
+        "the print aborted",
+    )
+    .await;
+    let p_abort: f64 = board_field(c, "progress").await.parse().unwrap_or(1.0);
+    assert!(p_abort < 1.0, "aborted at {p_abort}");
+
+    // A second tab sees the board but may not command it until it takes control.
+    let first = c.window().await.expect("this window");
+    let second = c.new_window(true).await.expect("a second tab").handle;
+    c.switch_to_window(second)
+        .await
+        .expect("switch to the second tab");
+    c.goto(base).await.expect("open the dashboard again");
+    click(c, "#nav-print").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"]')?.dataset.activity === 'aborted'",
+        20,
+        "the board's state in the second tab",
+    )
+    .await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"home\"]").await;
+    let refused = wait_for(c, "document.getElementById('toast').textContent.includes('another tab') && document.getElementById('toast').textContent", 20, "the second tab refused").await;
+    eprintln!("second tab: {refused}");
+    assert!(!js(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .take').hidden"
+    )
+    .await
+    .as_bool()
+    .unwrap_or(true));
+    shot(c, "second-tab.png").await;
+    click(c, ".board[data-board=\"0\"] .take").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .take').hidden",
+        20,
+        "control taken",
+    )
+    .await;
+    click(c, ".board[data-board=\"0\"] button[data-action=\"home\"]").await;
+    wait_for(
+        c,
+        "document.getElementById('toast').textContent === 'homing'",
+        20,
+        "homing ordered from the second tab",
+    )
+    .await;
+    c.close_window().await.expect("close the second tab");
+    c.switch_to_window(first)
+        .await
+        .expect("back to the first tab");
+
+    // Calibrate: the bundled puree flow curve is fitted, and its fragment applied to
+    // inlet 0 of the config in the editor.
+    click(c, "#nav-calibrate").await;
+    let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/calibration/rheology-puree.csv");
+    c.find(Locator::Id("cal-file"))
+        .await
+        .expect("CSV picker")
+        .send_keys(&csv.display().to_string())
+        .await
+        .expect("choosing the CSV");
+    click(c, "#cal-run").await;
+    wait_for(c, "document.getElementById('cal-report').textContent.includes('power law') && document.getElementById('cal-plot').complete && document.getElementById('cal-plot').naturalWidth > 100", 60, "the rheology fits and plot").await;
+    let fragment = js(c, "document.getElementById('cal-fragment').textContent").await;
+    assert!(
+        fragment
+            .as_str()
+            .unwrap_or_default()
+            .contains("rheology = "),
+        "{fragment}"
+    );
+    shot(c, "calibrate.png").await;
+    click(c, "#cal-apply").await;
+    wait_for(c, "document.querySelector('.field[data-path=\"inlet[0].rheology\"] input')?.value.includes('power_law')", 20, "the fragment in the config's inlet 0").await;
+}
