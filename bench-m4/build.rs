@@ -20,6 +20,7 @@ fn main() {
         ("valves", "seed-paper-valves.toml"),
         ("pastes", "food-pastes.toml"),
         ("syringes", "syringes.toml"),
+        ("ramps", "seed-paper.toml"),
     ] {
         let path = root.join("configs").join(file);
         println!("cargo:rerun-if-changed={}", path.display());

@@ -40,7 +40,7 @@ const LINE_CHUNK: usize = 2 * MAX_CHUNK;
 /// the first chunk). Longer chunks cost accuracy where a response bends (128 cycles
 /// tripled the whole-job boundary error, to 0.006 mm); at this length the whole-job tests
 /// stay within 0.004 mm although a prediction takes several units a chunk.
-const SYRINGE_CHUNK: usize = MAX_CHUNK;
+const SYRINGE_CHUNK: usize = super::syringe::CHUNK_CYCLES as usize;
 
 /// Where in a chunk the goal's inlet takes over: the fraction at which a margin (others
 /// minus goal) going from `m0` at the start to `m1 <= 0` at the end crosses zero, taking
@@ -309,11 +309,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         let i = self.copied as usize;
         if let (Some(dst), Some(src)) = (self.plungers.get_mut(i), model.plungers().get(i)) {
             dst.copy_from(src);
-            dst.command(
-                self.syringe_mask & (1 << i) != 0,
-                self.start,
-                model.rates()[i],
-            );
+            dst.command(self.syringe_mask & (1 << i) != 0, model.rates()[i]);
         }
         self.copied += 1;
     }
@@ -514,7 +510,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 // syringe per unit (in `vol`; `syringe_stage` counts the syringes done).
                 let i = self.syringe_stage as usize;
                 if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
-                    self.vol += p.remaining(self.k, r);
+                    self.vol += p.remaining(r);
                 }
                 self.syringe_stage += 1;
                 if self.syringe_stage as usize >= n {
@@ -534,8 +530,13 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 1 => &mut self.q_mid,
                 _ => &mut self.q_end,
             };
-            if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
-                slot[i] = p.flow_at(self.k + j / 2 * point as u64, r);
+            // The copy moves on to the chunk's end with its last point.
+            if let (Some(p), Some(r)) = (self.plungers.get_mut(i), resp.get(i)) {
+                slot[i] = match point {
+                    0 => p.flow_now(r),
+                    1 => p.flow_half_chunk(r),
+                    _ => p.advance_chunk(r),
+                };
             }
             if stage + 1 < 3 * n {
                 self.syringe_stage += 1;
