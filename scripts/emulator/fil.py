@@ -416,10 +416,24 @@ class Board:
                 raise FilError("GPIOC IDR read at %s is not a plain ldr: %s" % (self.image.function_at(pc), insn))
             wide = thumb32(emu, pc)
             orig = emu.r.read(pc, 4 if wide else 2)
-            if not wide and not flags_dead_after(self.image, pc):
-                raise FilError("cannot rewrite the 16-bit IDR load at %s (flags live after it)" % self.image.function_at(pc))
+            # A 16-bit load whose flags are live after it has no flag-preserving 16-bit
+            # replacement (movs and mvns set them): it stays a load, watched, and each read
+            # gets the inputs written into its register (a debugger stop a control period).
+            watched = not wide and not flags_dead_after(self.image, pc)
             self.sites.append(dict(pc=pc, rt=acc.regs[0], rn=acc.base, wide=wide, orig=orig, insn=insn,
-                                   where=self.image.function_at(pc)))
+                                   where=self.image.function_at(pc), watched=watched))
+        if any(s["watched"] for s in self.sites):
+            emu.watch(GPIOC_IDR, 4, self.on_idr_watched)
+
+    def on_idr_watched(self, w, regs):
+        """A watched IDR load: executed (QEMU reads 0), then its register set to the inputs."""
+        pc = regs[15] & ~1
+        self.emu.step_over(pc, w)
+        site = next((s for s in self.sites if s["pc"] == pc), None)
+        if site is not None:
+            self.emu.r.set_reg(site["rt"], self.idr_value)
+        self.idr_reads += 1
+        return None
 
     def idr(self):
         v = 0
@@ -434,6 +448,8 @@ class Board:
         v = self.idr()
         for s in self.sites:
             rt = s["rt"]
+            if s["watched"]:
+                continue
             if s["wide"]:
                 hw1 = 0xF240 | (((v >> 11) & 1) << 10) | ((v >> 12) & 0xF)
                 hw2 = (((v >> 8) & 7) << 12) | (rt << 8) | (v & 0xFF)

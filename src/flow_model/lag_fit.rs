@@ -14,15 +14,22 @@
 use crate::config::Syringe;
 
 /// Stages of the cascade. Eight follow the Weibull curve's mean over every control cycle
-/// within 2e-3 of the rate for shapes `0.4 <= n <= 2.5` (the bundled syringes within
-/// 1e-3), 4e-3 for `0.2 <= n <= 0.3`, 6e-3 at `n = 3`, 2e-2 at 4 and 4e-2 at 5, the
-/// validation's largest
-/// (`tests::fit_error_across_shapes`). Six were within 3e-3 up to `n = 2`, which let the
-/// bead section stray 2.8 % where a switch dips the flow (the whole-job syringe test). A
-/// cycle costs a step of 2 operations a stage and a sum of the stages.
+/// within 4e-3 of the rate for shapes `0.2 <= n <= 2` but near `n = 0.9` (6e-3), the
+/// bundled syringes within 1.2e-3; 7e-3 at `n = 2.5`, 1.5e-2 at 3, 6e-2 at 4 and 0.1 at 5,
+/// the validation's largest, where the curve is nearly a pure delay that stages follow
+/// badly (`tests::fit_error_across_shapes`). The fit weighs the tail of a stop relative
+/// to what is still to come (`TAIL`): a bead ends on that tail, where the head follows a
+/// flow of a few percent of the rate, so a small error there is a large one in the bead's
+/// section. Six stages, or eight fitted without that weight, let the section stray 1.6 to
+/// 2.8 % over 0.02 mm at such an end (the whole-job syringe tests); eight with it, 0.4 %.
+/// A cycle costs one step of 2 operations a stage and a sum of the stages.
 pub const STAGES: usize = 8;
 /// Entries of a lower-triangular STAGES x STAGES matrix, stored row by row.
 pub const TRI: usize = STAGES * (STAGES + 1) / 2;
+
+/// Below about this share of the rate still to come, the fit weighs its error relative
+/// to that share.
+const TAIL: f64 = 0.02;
 
 /// Points of `F` the weights are fitted to (and the error is measured on).
 const POINTS: usize = 64;
@@ -205,55 +212,55 @@ impl Target {
 /// precision (856 million instructions, seconds, past the watchdog); one fit costs it
 /// about a million.
 const SHAPES: [(f64, f64, f64); 49] = [
-    (0.2000, 0.3750, 4.5195),
+    (0.2000, -0.8125, 5.8032),
     (0.2139, 0.2500, 4.0000),
     (0.2287, 0.0000, 4.5326),
-    (0.2446, -0.2500, 4.2580),
+    (0.2446, -0.2500, 4.0000),
     (0.2615, -0.7500, 4.0000),
-    (0.2797, -0.8125, 4.1270),
-    (0.2991, -1.0625, 4.0000),
-    (0.3198, -1.2500, 3.8769),
-    (0.3420, -1.5000, 3.8769),
-    (0.3657, -1.7500, 3.8769),
+    (0.2797, -1.0000, 4.0000),
+    (0.2991, -1.1250, 4.1270),
+    (0.3198, -1.3125, 4.0000),
+    (0.3420, -1.5625, 4.0000),
+    (0.3657, -1.7500, 4.0000),
     (0.3911, -2.2500, 4.0000),
     (0.4182, -2.5000, 4.0000),
-    (0.4472, -2.3125, 4.0000),
-    (0.4782, -2.5000, 3.8769),
-    (0.5114, -2.4375, 3.3161),
-    (0.5469, -1.5000, 2.3485),
-    (0.5848, -1.5000, 2.2062),
-    (0.6254, -2.0000, 2.5000),
-    (0.6687, -1.5000, 2.1384),
+    (0.4472, -2.2500, 3.5300),
+    (0.4782, -2.4375, 3.5300),
+    (0.5114, -1.5000, 2.7457),
+    (0.5469, -1.5000, 3.2101),
+    (0.5848, -1.6250, 2.6612),
+    (0.6254, -1.6250, 2.5000),
+    (0.6687, -1.6875, 2.5000),
     (0.7151, -1.5000, 2.2062),
-    (0.7647, -1.5000, 2.8329),
+    (0.7647, -1.2500, 1.8290),
     (0.8178, -2.0000, 2.5000),
-    (0.8745, -1.1875, 1.9260),
-    (0.9351, -1.0000, 2.5000),
-    (1.0000, -2.0000, 12.0000),
-    (1.0694, -1.1250, 1.6474),
+    (0.8745, -1.0000, 4.1270),
+    (0.9351, -0.7500, 1.6474),
+    (1.0000, -0.8750, 1.5000),
+    (1.0694, -1.0000, 1.5000),
     (1.1435, -1.2500, 1.5000),
-    (1.2228, -1.1250, 1.4091),
-    (1.3077, -1.0000, 1.4091),
+    (1.2228, -0.8125, 1.3237),
+    (1.3077, -1.0000, 1.5000),
     (1.3984, -0.5000, 1.0000),
-    (1.4953, -0.5625, 1.0000),
-    (1.5991, -0.6250, 1.0000),
-    (1.7100, -0.5625, 1.0317),
+    (1.4953, -0.4375, 1.0000),
+    (1.5991, -0.5000, 1.0000),
+    (1.7100, -0.5000, 1.0000),
     (1.8286, -0.6250, 1.0645),
-    (1.9554, -0.6250, 1.0645),
-    (2.0910, -0.5625, 1.0000),
-    (2.2361, -0.6250, 1.0000),
-    (2.3912, -0.6250, 1.0000),
-    (2.5570, -0.6250, 1.0000),
-    (2.7344, -0.5000, 1.0000),
-    (2.9240, -0.7500, 1.0317),
-    (3.1268, -0.8125, 1.0000),
-    (3.3437, -0.8750, 1.0000),
-    (3.5756, -0.8750, 1.0000),
-    (3.8236, -0.8750, 1.0000),
-    (4.0888, -0.2500, 1.0000),
-    (4.3724, -0.2500, 1.0317),
-    (4.6757, -0.5000, 1.2445),
-    (5.0000, -0.5000, 1.2840),
+    (1.9554, -0.4375, 1.0000),
+    (2.0910, -0.6250, 1.0000),
+    (2.2361, -0.7500, 1.0000),
+    (2.3912, -0.6250, 1.0645),
+    (2.5570, -0.8750, 1.1331),
+    (2.7344, -0.7500, 1.1331),
+    (2.9240, -0.8750, 1.0000),
+    (3.1268, -0.7500, 1.0000),
+    (3.3437, -0.7500, 1.3248),
+    (3.5756, -1.1250, 1.1331),
+    (3.8236, -1.0000, 1.1331),
+    (4.0888, -1.0000, 1.1331),
+    (4.3724, -1.0000, 1.1331),
+    (4.6757, -1.0000, 1.0000),
+    (5.0000, -1.0000, 1.0000),
 ];
 
 /// Fits the cascade for Weibull `k`, `n` and control cycles of `dt` seconds: time
@@ -261,10 +268,11 @@ const SHAPES: [(f64, f64, f64); 49] = [
 pub fn fit(k: f64, n: f64, dt: f64) -> Fit {
     let target = Target::new(k, n, dt);
     let median = median(k, n);
-    let ln = libm::log(n);
+    // Nearest in log n, without logarithms: the smaller of the two ratios.
+    let off = |s: f64| if s > n { s / n } else { n / s };
     let mut row = SHAPES[0];
     for s in SHAPES {
-        if libm::fabs(libm::log(s.0) - ln) < libm::fabs(libm::log(row.0) - ln) {
+        if off(s.0) < off(row.0) {
             row = s;
         }
     }
@@ -357,11 +365,15 @@ fn candidate(target: &Target, tau0: f64, r: f64, dt: f64) -> Option<Fit> {
         for j in 0..U {
             z[j] = x[j] - last;
         }
+        // Relative to what is still to come where little is: a bead ends on the tail of
+        // a stop, where the head follows a flow of a few percent of the rate and its
+        // section is the ratio of the two flows.
+        let w = 1.0 / ((1.0 - f + TAIL) * (1.0 - f + TAIL));
         for i in 0..U {
             for j in 0..=i {
-                gram[i][j] += z[i] * z[j];
+                gram[i][j] += w * z[i] * z[j];
             }
-            rhs[i] += z[i] * (f - last);
+            rhs[i] += w * z[i] * (f - last);
         }
     });
     let w = solve_spd(&mut gram, rhs)?;
@@ -529,19 +541,19 @@ mod tests {
         for (n, bound) in [
             (0.2, 4e-3),
             (0.3, 4e-3),
-            (0.4, 2e-3),
-            (0.5, 2e-3),
-            (0.7, 2e-3),
-            (0.9, 2e-3),
-            (1.0, 2e-3),
-            (1.1, 2e-3),
-            (1.3, 2e-3),
-            (1.5, 2e-3),
-            (2.0, 2e-3),
-            (2.5, 2e-3),
-            (3.0, 6e-3),
-            (4.0, 2e-2),
-            (5.0, 4e-2),
+            (0.4, 4e-3),
+            (0.5, 4e-3),
+            (0.7, 4e-3),
+            (0.9, 7e-3),
+            (1.0, 4e-3),
+            (1.1, 4e-3),
+            (1.3, 4e-3),
+            (1.5, 4e-3),
+            (2.0, 4e-3),
+            (2.5, 7e-3),
+            (3.0, 1.5e-2),
+            (4.0, 6e-2),
+            (5.0, 0.1),
         ] {
             let k = 10.0;
             let e = worst_per_cycle(k, n, dt);
@@ -551,7 +563,7 @@ mod tests {
         for (k, n) in [(30.0, 1.3), (45.0, 1.1), (400.0, 1.5)] {
             let e = worst_per_cycle(k, n, dt);
             eprintln!("k {k} n {n}: worst {e:.2e}");
-            failed |= e >= 1e-3;
+            failed |= e >= 1.5e-3;
         }
         assert!(!failed);
     }
