@@ -1013,6 +1013,14 @@ impl Config {
                     let (Some(sa), Some(sb)) = (a.syringe, b.syringe) else {
                         continue;
                     };
+                    if i == j {
+                        // Its own stop and start cancel: the plunger's rate all along.
+                        if rate / s > v_flow_max {
+                            v_flow_max = rate / s;
+                            worst = (j as u8, i as u8);
+                        }
+                        continue;
+                    }
                     let (ka, na) = (sa.lag_k as f64, sa.lag_n as f64);
                     let (kb, nb) = (sb.lag_k as f64, sb.lag_n as f64);
                     let t_end = Syringe::settle_time(ka, na).max(Syringe::settle_time(kb, nb));

@@ -228,8 +228,9 @@ def mov_w(rd, value, orig):
 
 
 def flags_dead_after(image, pc):
-    """True if the condition flags at pc are written before anything reads them (a
-    straight-line scan of the disassembly; gives up, False, at any branch)."""
+    """True if the condition flags at pc are written before anything reads them, or the
+    function returns first (a straight-line scan of the disassembly; gives up, False, at
+    any other branch)."""
     for a in sorted(a for a in image.insns if pc < a < pc + 256):
         base = image.insns[a][0].split(".")[0]
         if base in ("cmp", "cmn", "tst", "teq"):
@@ -240,6 +241,12 @@ def flags_dead_after(image, pc):
             return False
         if base[:-2] in DATA_OPS + ("b",) and base[-2:] in CONDS:
             return False
+        # A return (bx lr, or pop with pc): the AAPCS keeps no flags across a call, so
+        # no caller reads the ones this function leaves.
+        if base == "bx" and image.insns[a][1].strip() == "lr":
+            return True
+        if base == "pop" and "pc" in image.insns[a][1]:
+            return True
         if base in ("b", "bl", "bx", "blx", "cbz", "cbnz", "pop", "tbb", "tbh"):
             return False
     return False

@@ -4,6 +4,7 @@
 //! nothing of the head or the job; the executor turns volume into motion.
 
 pub mod channel;
+pub mod lag_fit;
 pub mod lines;
 pub mod predict;
 pub mod solve;
@@ -195,9 +196,9 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
                 m |= 1 << i;
             }
         }
-        // A syringe's plunger starts or stops with the next cycle; its lag is in F.
+        // A syringe's plunger starts or stops with the next cycle; its lag is in the cascade.
         for (i, pl) in self.plungers.iter_mut().enumerate() {
-            pl.command(mask & (1 << i) != 0, self.next, self.rates[i]);
+            pl.command(mask & (1 << i) != 0, self.rates[i]);
         }
         self.commanded = m;
     }
@@ -222,7 +223,6 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// One cycle of a syringe machine: every plunger's outflow at mid-cycle; the largest
     /// feeds the channel (a mixed zone is attributed to whichever supplies more).
     fn step_syringes(&mut self) -> Result<CycleFlow<R>, ChannelFull> {
-        let k = self.next;
         self.next += 1;
         let dt = self.dt;
         let mut total = R::ZERO;
@@ -233,7 +233,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             .zip(self.responses.iter())
             .enumerate()
         {
-            let q = pl.flow_mid(k, resp);
+            let q = pl.flow_mid(resp);
             total += q;
             if q > R::ZERO && best.is_none_or(|(_, b)| q > b) {
                 best = Some((i, q));
@@ -408,12 +408,11 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     /// syringes' outflow), mm^3/s.
     pub fn flow_now(&self) -> R {
         if !self.plungers.is_empty() {
-            let at = self.next;
             return self
                 .plungers
                 .iter()
                 .zip(self.responses.iter())
-                .map(|(p, r)| p.flow_at(at, r))
+                .map(|(p, r)| p.flow_now(r))
                 .fold(R::ZERO, |a, b| a + b);
         }
         let p = self.junction_pa();
@@ -479,7 +478,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
     }
     /// True while some valve is open or a line still holds pressure above `p_min`.
     pub fn active(&self, p_min: R) -> bool {
-        self.plungers.iter().any(|p| p.running || p.len > 0)
+        self.plungers.iter().any(|p| p.running || p.settling())
             || self
                 .lines
                 .iter()

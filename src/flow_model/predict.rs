@@ -40,7 +40,7 @@ const LINE_CHUNK: usize = 2 * MAX_CHUNK;
 /// the first chunk). Longer chunks cost accuracy where a response bends (128 cycles
 /// tripled the whole-job boundary error, to 0.006 mm); at this length the whole-job tests
 /// stay within 0.004 mm although a prediction takes several units a chunk.
-const SYRINGE_CHUNK: usize = MAX_CHUNK;
+const SYRINGE_CHUNK: usize = super::syringe::CHUNK_CYCLES as usize;
 
 /// Where in a chunk the goal's inlet takes over: the fraction at which a margin (others
 /// minus goal) going from `m0` at the start to `m1 <= 0` at the end crosses zero, taking
@@ -191,9 +191,8 @@ pub struct Prediction<R, const N: usize> {
     q_end: [R; N],
     syringe_stage: u8,
     n_plungers: usize,
-    /// Valves of the hypothetical command, and how many plungers are copied so far.
+    /// Valves of the hypothetical command.
     syringe_mask: u32,
-    copied: u8,
 }
 
 impl<R: Real, const N: usize> Default for Prediction<R, N> {
@@ -240,7 +239,6 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             q_end: [R::ZERO; N],
             syringe_stage: 0,
             syringe_mask: 0,
-            copied: 0,
         }
     }
 
@@ -296,26 +294,12 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             self.p_scale = self.p_scale.max(r);
         }
         self.syringe_mask = mask;
-        self.copied = 0;
-        self.copy_plunger(model);
-    }
-
-    /// Copies the next syringe's plunger, with the hypothetical command applied: one per
-    /// unit of work. Between units a plunger changes only by folding settled changes,
-    /// which leaves its outflow as it was, or by a command, after which the executor
-    /// starts the prediction afresh; so copies taken a cycle or two apart still describe
-    /// the machine as it was at the start.
-    fn copy_plunger(&mut self, model: &FlowModel<R, N>) {
-        let i = self.copied as usize;
-        if let (Some(dst), Some(src)) = (self.plungers.get_mut(i), model.plungers().get(i)) {
+        // Every plunger at once: each cycle moves a plunger's lag state on, so copies
+        // taken in later units would describe later cycles than the prediction's start.
+        for (i, (dst, src)) in self.plungers.iter_mut().zip(model.plungers()).enumerate() {
             dst.copy_from(src);
-            dst.command(
-                self.syringe_mask & (1 << i) != 0,
-                self.start,
-                model.rates()[i],
-            );
+            dst.command(mask & (1 << i) != 0, model.rates()[i]);
         }
-        self.copied += 1;
     }
 
     /// Starts predicting `goal` (see `restart`).
@@ -505,16 +489,12 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         };
         let j = SYRINGE_CHUNK as u64;
         for _ in 0..budget {
-            if (self.copied as usize) < n {
-                self.copy_plunger(model);
-                continue;
-            }
             if to == usize::MAX {
                 // A stop has a closed form: each change's volume still to come, summed a
                 // syringe per unit (in `vol`; `syringe_stage` counts the syringes done).
                 let i = self.syringe_stage as usize;
                 if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
-                    self.vol += p.remaining(self.k, r);
+                    self.vol += p.remaining(r);
                 }
                 self.syringe_stage += 1;
                 if self.syringe_stage as usize >= n {
@@ -534,8 +514,13 @@ impl<R: Real, const N: usize> Prediction<R, N> {
                 1 => &mut self.q_mid,
                 _ => &mut self.q_end,
             };
-            if let (Some(p), Some(r)) = (self.plungers.get(i), resp.get(i)) {
-                slot[i] = p.flow_at(self.k + j / 2 * point as u64, r);
+            // The copy moves on to the chunk's end with its last point.
+            if let (Some(p), Some(r)) = (self.plungers.get_mut(i), resp.get(i)) {
+                slot[i] = match point {
+                    0 => p.flow_now(r),
+                    1 => p.flow_half_chunk(r),
+                    _ => p.advance_chunk(r),
+                };
             }
             if stage + 1 < 3 * n {
                 self.syringe_stage += 1;

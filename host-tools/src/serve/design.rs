@@ -382,6 +382,10 @@ impl SliceForm {
             max_segments: d.max_segments,
             max_triangles: d.max_triangles,
             max_3mf_mb: d.max_3mf_bytes >> 20,
+            // The dashboard has no control for these yet (the CLI's `slice --markers` and
+            // `--calibration-pattern`).
+            markers: false,
+            calibration_pattern: false,
         })
     }
 }

@@ -99,16 +99,31 @@ impl ControlCtx {
         }
     }
 
-    /// One control period.
-    pub fn on_period(&mut self) {
-        let now_us = self.clock.now_us();
-        let inputs = Inputs {
-            estop: ESTOP_LATCH.swap(false, Ordering::AcqRel) || self.estop.is_high(),
-            endstops: [
+    /// The e-stop and endstop pins (GPIOC). Out of line so that each pin's load is
+    /// followed by this function's own code up to its return: the emulator harness
+    /// (scripts/emulator/fil.py) rewrites these loads with the modelled levels, which it
+    /// can do only where the condition flags are dead after them, and a flag-setting
+    /// comparison of the caller scheduled past an inlined load made one such load a
+    /// debugger stop every period, too slow for the host tool's timeouts.
+    #[inline(never)]
+    fn read_pins(&self) -> (bool, [bool; 3]) {
+        (
+            self.estop.is_high(),
+            [
                 self.endstops[0].is_low(),
                 self.endstops[1].is_low(),
                 self.endstops[2].is_low(),
             ],
+        )
+    }
+
+    /// One control period.
+    pub fn on_period(&mut self) {
+        let now_us = self.clock.now_us();
+        let (estop, endstops) = self.read_pins();
+        let inputs = Inputs {
+            estop: ESTOP_LATCH.swap(false, Ordering::AcqRel) || estop,
+            endstops,
         };
         let mut out = EStopGuard {
             out: &mut self.out,
