@@ -492,6 +492,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Syringe plunger targets, steps.
     fn plunger_targets(&self) -> [i32; N] {
         let mut t = [0i32; N];
+        if !self.machine.syringes {
+            return t;
+        }
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             if let Some(sy) = inlet.syringe {
                 t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
@@ -501,6 +504,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// This cycle as planned, for the ramp window.
+    #[inline(always)]
     fn frame(&self) -> Frame<N> {
         Frame {
             pos: to_units(self.head_pos),
@@ -838,7 +842,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
         total_dv: Vol,
         out: &mut impl Outputs,
     ) -> Result<Report<R>, Fault> {
-        let dv = Vol(total_dv.0 / cycles.max(1) as i64);
+        // One cycle a tick but for a late tick's catch-up: no 64-bit division then (a
+        // software routine on the M4, 65 instructions).
+        let dv = if cycles <= 1 {
+            total_dv
+        } else {
+            Vol(total_dv.0 / cycles as i64)
+        };
         for _ in 0..cycles {
             self.push_frame(dv);
         }
@@ -852,7 +862,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             return Err(f);
         }
         self.set_valves(self.ramp.current().valves, out);
-        Ok(self.ramped_report())
+        Ok(self.ramped_report_at(target))
     }
 
     /// Steps for head position `target` over `cycles`.
@@ -984,12 +994,18 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// The report with speed ramps: what the outputs show, half a window behind the plan.
     /// Out of line, so that machines without ramps do not carry it in their tick.
-    #[inline(never)]
     fn ramped_report(&self) -> Report<R> {
+        self.ramped_report_at(self.ramp.position())
+    }
+
+    /// `ramped_report` with the window's mean position already worked out (the tick has
+    /// it: the mean of the window costs about 70 instructions).
+    #[inline(never)]
+    fn ramped_report_at(&self, position: [R; 3]) -> Report<R> {
         let f = self.ramp.current();
         Report {
             state: self.state(),
-            position: self.ramp.position(),
+            position,
             valves: self.valves_out,
             feeding: f.feeding,
             landing: f.landing,

@@ -117,7 +117,9 @@ impl<const N: usize> Ramp<N> {
         &self.ring[(self.newest as usize + RAMP_CAPACITY - back) & (RAMP_CAPACITY - 1)]
     }
 
-    /// Adds the newest planned cycle; the oldest of the window leaves it.
+    /// Adds the newest planned cycle; the oldest of the window leaves it. Inlined, so that
+    /// the caller builds the frame straight into its slot.
+    #[inline(always)]
     pub fn push(&mut self, frame: Frame<N>) {
         let leaving = self.at(self.window as usize - 1).pos;
         for ((sum, &new), &old) in self.sum.iter_mut().zip(&frame.pos).zip(&leaving) {

@@ -214,14 +214,7 @@ impl<R: Real> Plunger<R> {
         x[5] += b[5] * (x[4] - x[5]);
         x[6] += b[6] * (x[5] - x[6]);
         x[7] += b[7] * (x[6] - x[7]);
-        let y = c[0] * x[0]
-            + c[1] * x[1]
-            + c[2] * x[2]
-            + c[3] * x[3]
-            + c[4] * x[4]
-            + c[5] * x[5]
-            + c[6] * x[6]
-            + c[7] * x[7];
+        let y = dot(c, x);
         self.y = y;
         y.max(R::ZERO)
     }

@@ -38,21 +38,7 @@ pub fn rheology(name: &str, bytes: &[u8], kind: &str) -> ApiResult<Shown> {
         };
     let dir = tempfile::tempdir()
         .map_err(|e| ApiError::internal(format!("cannot create a temporary folder: {e}")))?;
-    let clean: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "._-".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    let clean = if clean.trim_start_matches('.').is_empty() {
-        "data.csv".to_string()
-    } else {
-        clean
-    };
+    let clean = super::design::safe_name(name, "data.csv");
     let path = dir.path().join(&clean);
     std::fs::write(&path, bytes)
         .map_err(|e| ApiError::internal(format!("cannot keep the upload: {e}")))?;

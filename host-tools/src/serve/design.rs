@@ -398,13 +398,14 @@ pub struct Upload {
     pub bytes: Vec<u8>,
 }
 
-/// A file name safe to write in our temporary folder (letters, digits, `._-`), keeping
-/// the extension the slicer goes by.
-fn safe_name(name: &str, i: usize) -> String {
+/// A file name safe to write in our temporary folder (letters, digits, `._-`; no folders,
+/// no leading dots), keeping the extension the reader goes by; `fallback` if nothing is
+/// left.
+pub(super) fn safe_name(name: &str, fallback: &str) -> String {
     let base = Path::new(name)
         .file_name()
         .and_then(|n| n.to_str())
-        .unwrap_or("design");
+        .unwrap_or("");
     let clean: String = base
         .chars()
         .map(|c| {
@@ -417,7 +418,7 @@ fn safe_name(name: &str, i: usize) -> String {
         .collect();
     let clean = clean.trim_start_matches('.');
     if clean.is_empty() {
-        format!("design-{i}")
+        fallback.to_string()
     } else {
         clean.to_string()
     }
@@ -438,7 +439,7 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
         .map_err(|e| ApiError::internal(format!("cannot create a temporary folder: {e}")))?;
     let mut paths = Vec::new();
     for (i, u) in uploads.iter().enumerate() {
-        let mut name = safe_name(&u.name, i);
+        let mut name = safe_name(&u.name, &format!("design-{i}"));
         if paths
             .iter()
             .any(|p: &PathBuf| p.file_name().is_some_and(|n| n == name.as_str()))
