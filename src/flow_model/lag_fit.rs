@@ -123,7 +123,8 @@ pub struct Fit {
     pub tau: [f64; STAGES],
     /// Outflow weights (sum 1).
     pub c: [f64; STAGES],
-    /// Largest difference from `F` on the fit's points, as a fraction of the rate.
+    /// Largest difference from `F` on the fit's points, as a fraction of the rate (NaN
+    /// where the fit was not asked to measure it: the board's).
     pub error: f64,
     /// The cascade over one control cycle.
     pub step: Map<f64>,

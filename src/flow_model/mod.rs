@@ -411,8 +411,7 @@ impl<R: Real, const N: usize> FlowModel<R, N> {
             return self
                 .plungers
                 .iter()
-                .zip(self.responses.iter())
-                .map(|(p, r)| p.flow_now(r))
+                .map(|p| p.flow_now())
                 .fold(R::ZERO, |a, b| a + b);
         }
         let p = self.junction_pa();

@@ -297,7 +297,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         // Every plunger at once: each cycle moves a plunger's lag state on, so copies
         // taken in later units would describe later cycles than the prediction's start.
         for (i, (dst, src)) in self.plungers.iter_mut().zip(model.plungers()).enumerate() {
-            dst.copy_from(src);
+            *dst = *src;
             dst.command(mask & (1 << i) != 0, model.rates()[i]);
         }
     }
@@ -517,7 +517,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             // The copy moves on to the chunk's end with its last point.
             if let (Some(p), Some(r)) = (self.plungers.get_mut(i), resp.get(i)) {
                 slot[i] = match point {
-                    0 => p.flow_now(r),
+                    0 => p.flow_now(),
                     1 => p.flow_half_chunk(r),
                     _ => p.advance_chunk(r),
                 };

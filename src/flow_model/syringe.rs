@@ -191,11 +191,6 @@ impl<R: Real> Plunger<R> {
         self.x.iter().any(|&x| (x - self.u).abs() > tol)
     }
 
-    /// Becomes `src`.
-    pub fn copy_from(&mut self, src: &Plunger<R>) {
-        *self = *src;
-    }
-
     /// Outflow over this cycle (mm^3/s, its mean), moving on to the next: one step of
     /// the cascade, a fixed cost whatever the plunger did before. Each stage closes its
     /// share of the gap to the stage before (the first to the rate): a settled stage has
@@ -221,7 +216,7 @@ impl<R: Real> Plunger<R> {
 
     /// Outflow now (over the last cycle stepped).
     #[inline]
-    pub fn flow_now(&self, _resp: &Response<R>) -> R {
+    pub fn flow_now(&self) -> R {
         self.y.max(R::ZERO)
     }
 
@@ -234,7 +229,7 @@ impl<R: Real> Plunger<R> {
     pub fn advance_chunk(&mut self, resp: &Response<R>) -> R {
         resp.chunk.apply(&mut self.x, self.u);
         self.y = dot(&resp.c, &self.x);
-        self.flow_now(resp)
+        self.flow_now()
     }
 
     /// Volume still to come out (mm^3) from now on once the plunger has stopped (as
@@ -301,16 +296,12 @@ mod tests {
             let half = b.flow_half_chunk(&r);
             for i in 0..CHUNK_CYCLES {
                 if i == CHUNK_CYCLES / 2 {
-                    assert!((a.flow_now(&r) - half).abs() < 1e-9);
+                    assert!((a.flow_now() - half).abs() < 1e-9);
                 }
                 a.flow_mid(&r);
             }
             let end = b.advance_chunk(&r);
-            assert!(
-                (a.flow_now(&r) - end).abs() < 1e-9,
-                "{} {end}",
-                a.flow_now(&r)
-            );
+            assert!((a.flow_now() - end).abs() < 1e-9, "{} {end}", a.flow_now());
         }
     }
 
@@ -329,7 +320,7 @@ mod tests {
             v += p.flow_mid(&r) * dt;
         }
         assert!((v - 1.0).abs() < 1e-3, "{v}");
-        assert!(p.flow_now(&r).abs() < 1e-9);
+        assert!(p.flow_now().abs() < 1e-9);
         // What remains after the stop, predicted at the stop, is what then came out.
         let mut p = Plunger::default();
         p.command(true, 5.0);
