@@ -123,13 +123,13 @@ fn firmware_section(c: &Config, s: &Sliced) -> f64 {
 }
 
 #[test]
-fn run_gcode_with_ideal_valves_lands_boundaries_and_keeps_the_section_near_s() {
-    // With ideal valves the flow jumps at a switch (the head from 10 to 21 mm/s on this
-    // machine) faster than 2000 mm/s^2 lets any head follow: the firmware itself ramps
-    // the speed across the jump (issue 12) and the section strays by what the limit
-    // forces. The G-code, written from that run, is held to the goal or to the firmware's
-    // own section plus 4 points (measured: 1 to 3.6 points over it; 0.12 to 0.15 of S
-    // for the firmware), whichever is looser; the boundaries to the goal.
+fn run_gcode_with_ideal_valves_meets_the_goals_where_the_firmware_itself_does_not() {
+    // With ideal valves the flow jumps at a switch (the head from 10 to 22 mm/s on this
+    // machine) faster than 2000 mm/s^2 lets any head follow. The firmware ramps through
+    // such jumps at 1/sqrt(2) of the limit, sized to the worst one, and strays 0.12 to 0.15
+    // of S. The G-code is sampled from a run without those ramps and each jump is put
+    // half-way through the firmware planner's own ramp at the full limit: dv^2 / 8a of
+    // bead short before it and over after, within the goal.
     let c = config(true);
     for (label, s) in designs(&c) {
         let g = run_export(&c, &s, Kind::Plain);
@@ -139,7 +139,7 @@ fn run_gcode_with_ideal_valves_lands_boundaries_and_keeps_the_section_near_s() {
         assert!(v.landed >= v.boundaries, "{label}: {v:?}");
         assert!(v.p95_mm <= 0.1, "{label}: {v:?}");
         assert!(
-            v.worst_section <= (own + 0.04).max(0.05),
+            v.worst_section <= 0.05,
             "{label}: {v:?} (firmware {own:.4})"
         );
         assert_eq!(v.full_stops, 0, "{label}");
@@ -147,7 +147,7 @@ fn run_gcode_with_ideal_valves_lands_boundaries_and_keeps_the_section_near_s() {
 }
 
 #[test]
-fn dialects_reprap_prints_as_plain_and_marlins_stops_show() {
+fn dialects_reprap_and_klipper_print_as_plain_and_marlins_stops_show() {
     let c = config(false);
     let (label, s) = designs(&c).swap_remove(0);
     let plain = judge("plain", &c, &s, &run_export(&c, &s, Kind::Plain));
@@ -159,6 +159,26 @@ fn dialects_reprap_prints_as_plain_and_marlins_stops_show() {
         (rrf.worst_section - plain.worst_section).abs() < 2e-3,
         "{label}"
     );
+    // Klipper's SET_PIN is scheduled with the moves: the same timing as plain M42, judged
+    // with Klipper's corner rule (square_corner_velocity 5 mm/s).
+    let k_text = run_export(&c, &s, Kind::Klipper);
+    assert!(k_text.contains("SET_PIN PIN=dollop_valve1 VALUE=1\n") && !k_text.contains("M42"));
+    let start = s.header.start_um.map(|v| v as f64 * 1e-3);
+    let mut setup = Setup::new(&c, s.header.initial_material, start);
+    setup.firmware = setup.firmware.with_square_corner_velocity(5.0);
+    let design =
+        gcode_judge::design_boundaries(&s.commands, s.header.start_um, s.header.initial_material);
+    let k = gcode_judge::judge(&k_text, &setup, &design).unwrap();
+    eprintln!(
+        "klipper: p95 {:.4} mm, worst section {:.4}, {} full stops",
+        k.p95_mm, k.worst_section, k.full_stops
+    );
+    assert!((k.p95_mm - plain.p95_mm).abs() < 1e-3, "{label}");
+    assert!(
+        (k.worst_section - plain.worst_section).abs() < 2e-3,
+        "{label}"
+    );
+    assert_eq!(k.full_stops, 0, "{label}");
     // Marlin's M400 before each M42 stops the head at every switch while the paste flows:
     // the judge must see the bulge.
     let marlin = judge("marlin", &c, &s, &run_export(&c, &s, Kind::Marlin));

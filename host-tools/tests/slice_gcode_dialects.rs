@@ -22,14 +22,17 @@ fn slice(dir: &Path, extra: &[&str]) -> (i32, String) {
             &manifest("designs/logo.png"),
             "--config",
             &manifest("../configs/seed-paper-valves.toml"),
-            "--width-mm",
-            "12",
             "--out",
             "logo.dlp",
             "--gcode",
             "logo.gcode",
         ])
         .args(extra)
+        .args(if extra.contains(&"--width-mm") {
+            &[][..]
+        } else {
+            &["--width-mm", "12"][..]
+        })
         .output()
         .unwrap();
     (
@@ -58,6 +61,15 @@ fn each_dialect_is_written_and_the_default_is_plain_from_the_run() {
     assert!(g
         .lines()
         .any(|l| l.starts_with("G1 ") && l.ends_with(" P2")));
+    let (code, err) = slice(d, &["--gcode-dialect", "klipper", "--gcode-ports", "3,4"]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(
+        g.contains("[output_pin dollop_valve3]")
+            && g.contains("SET_PIN PIN=dollop_valve4 VALUE=1\n"),
+        "{g:.2000}"
+    );
+    assert!(!g.contains("M42"));
     let (code, err) = slice(d, &["--gcode-dialect", "marlin", "--gcode-ports", "40"]);
     assert_eq!(code, 0, "{err}");
     let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
@@ -81,7 +93,8 @@ fn bad_gcode_options_are_refused_in_one_line() {
             &["--gcode-style", "fine", "--gcode-dialect", "reprap"][..],
             "--gcode-style run",
         ),
-        (&["--gcode-dialect", "klipper"][..], "--gcode-dialect"),
+        (&["--gcode-dialect", "smoothie"][..], "--gcode-dialect"),
+        (&["--gcode-max-mb", "0"][..], "--gcode-max-mb"),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let (code, err) = slice(dir.path(), args);
@@ -96,4 +109,36 @@ fn bad_gcode_options_are_refused_in_one_line() {
             "{args:?} left files"
         );
     }
+}
+
+#[test]
+fn g_code_over_the_size_limit_is_refused_and_nothing_written() {
+    // The bundled cube's G-code is over 1 MiB: refused after the executor's run, naming
+    // the option, with neither the job nor the G-code written.
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .current_dir(dir.path())
+        .args([
+            "slice",
+            &manifest("designs/cube-shell.stl"),
+            &manifest("designs/cube-ball.stl"),
+            "--config",
+            &manifest("../configs/seed-paper-valves.toml"),
+            "--out",
+            "cube.dlp",
+            "--gcode",
+            "cube.gcode",
+            "--gcode-max-mb",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("MiB, over the limit of 1.0 MiB (--gcode-max-mb)"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }

@@ -20,6 +20,11 @@ pub struct RunOptions {
     /// Give up after this much simulated time, s (infinite: run until the job ends; the
     /// executor always ends a job, since every command finishes or faults).
     pub max_time_s: f64,
+    /// Let the executor ramp the head's speed through flow steps (`Machine::ramp_cycles`),
+    /// as the firmware does. Off, the head follows the flow as it is, jumps and all: what
+    /// the G-code export samples, since a firmware's own planner ramps its moves at the
+    /// full acceleration limit, and ramping twice would lay the paste twice as far off.
+    pub head_ramps: bool,
 }
 
 impl Default for RunOptions {
@@ -28,6 +33,7 @@ impl Default for RunOptions {
             plant: true,
             plant_step_s: 1e-4,
             max_time_s: f64::INFINITY,
+            head_ramps: true,
         }
     }
 }
@@ -124,9 +130,12 @@ pub fn run_with_plant<R: Real>(
     opts: &RunOptions,
     mut observe: impl FnMut(&Cycle<'_, R>),
 ) -> Result<RunResult, SimError> {
-    let machine = config
+    let mut machine = config
         .validate::<R, { dollop::DEFAULT_INLETS }>()
         .map_err(SimError::Config)?;
+    if !opts.head_ramps {
+        machine.ramp_cycles = 1;
+    }
     let period_us = machine.period_us as u64;
     let dt = period_us as f64 * 1e-6;
     let spm: [f64; 3] = [

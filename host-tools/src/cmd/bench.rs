@@ -326,22 +326,21 @@ pub fn gcode_quality(ctx: &Ctx) -> anyhow::Result<()> {
             let start = s.header.start_um.map(|v| v as f64 * 1e-3);
             let init = s.header.initial_material;
             let design = gcode_judge::design_boundaries(&s.commands, s.header.start_um, init);
-            let mut outputs: Vec<(&str, String)> = Vec::new();
-            for kind in [Kind::Plain, Kind::RepRap, Kind::Marlin] {
+            // (name, text, Klipper's corner rule instead of Marlin's junction deviation)
+            let mut outputs: Vec<(&str, String, bool)> = Vec::new();
+            for (name, kind) in [
+                ("run, plain", Kind::Plain),
+                ("run, reprap", Kind::RepRap),
+                ("run, klipper", Kind::Klipper),
+                ("run, marlin", Kind::Marlin),
+            ] {
                 let opt = RunExport {
                     dialect: Dialect::new(kind),
                     ..RunExport::default()
                 };
                 let (text, _) =
                     gcode_exec::export(&config, &s.commands, s.header.start_um, init, &[], &opt)?;
-                outputs.push((
-                    match kind {
-                        Kind::Plain => "run, plain",
-                        Kind::RepRap => "run, reprap",
-                        Kind::Marlin => "run, marlin",
-                    },
-                    text,
-                ));
+                outputs.push((name, text, kind == Kind::Klipper));
             }
             for (name, style) in [
                 ("older fine", Style::default()),
@@ -349,10 +348,14 @@ pub fn gcode_quality(ctx: &Ctx) -> anyhow::Result<()> {
             ] {
                 let (text, _) =
                     gcode::export(&s.commands, s.header.start_um, init, &machine, &[], style)?;
-                outputs.push((name, text));
+                outputs.push((name, text, false));
             }
-            for (name, text) in &outputs {
-                let setup = Setup::new(&config, init, start);
+            for (name, text, klipper) in &outputs {
+                let mut setup = Setup::new(&config, init, start);
+                if *klipper {
+                    // Klipper's default square_corner_velocity.
+                    setup.firmware = setup.firmware.with_square_corner_velocity(5.0);
+                }
                 let v = gcode_judge::judge(text, &setup, &design)?;
                 println!(
                     "{label}, {job}, {name:>12}: boundaries p95 {:.3} mm, worst {:.3} mm (mean {:.3}, {} designed, {} landed, {} off the beads); section {:.3}..{:.3} of S over {} windows of 0.2 mm; {} full stops on beads; {:.0} s",

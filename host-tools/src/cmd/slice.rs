@@ -44,14 +44,20 @@ pub struct Args {
     /// How `--gcode-style run` writes valve changes: `plain` (`M42 P<port> S0|1` between
     /// moves; the firmware must run M42 in its place in the move sequence), `reprap`
     /// (RepRapFirmware 3: `G1 ... P<bitmap>` mapped by `M670`, `M400` + `M42` while
-    /// standing) or `marlin` (`M400` then `M42 P<pin> S0|255`: the head stops at each
+    /// standing), `klipper` (`SET_PIN PIN=dollop_valve<port> VALUE=0|1`, which Klipper
+    /// schedules with the moves; needs `[output_pin dollop_valve<port>]` sections) or `marlin` (`M400` then `M42 P<pin> S0|255`: the head stops at each
     /// valve change).
-    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "marlin"])]
+    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "klipper", "marlin"])]
     pub gcode_dialect: String,
-    /// Port (plain, reprap) or board pin (marlin) of each inlet's valve, inlet 0 first
+    /// Port (plain, reprap), output_pin number (klipper) or board pin (marlin) of each inlet's valve, inlet 0 first
     /// [default: 0,1,..].
     #[arg(long, value_name = "P0,P1,..")]
     pub gcode_ports: Option<String>,
+    /// Refuse to write G-code larger than this, MiB (`--gcode-style run`): it is built in
+    /// memory, and a day-long print's runs to gigabytes. Checked from the job before the
+    /// executor's run, then on the text.
+    #[arg(long, value_name = "MIB", default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1_048_576))]
+    pub gcode_max_mb: u64,
     /// Also write a PNG of the toolpath coloured by material, travel moves dashed.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
@@ -227,6 +233,7 @@ impl Args {
 fn gcode_dialect(a: &Args, inlets: usize) -> Result<Dialect, SliceError> {
     let kind = match a.gcode_dialect.as_str() {
         "reprap" => Kind::RepRap,
+        "klipper" => Kind::Klipper,
         "marlin" => Kind::Marlin,
         _ => Kind::Plain,
     };
@@ -306,16 +313,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 _ => {
                     let opt = RunExport {
                         dialect: gcode_dialect(&a, config.inlets.len())?,
+                        max_bytes: a.gcode_max_mb << 20,
                         ..RunExport::default()
                     };
-                    return gcode_exec::export(
+                    // The executor runs the whole job: minutes for a day-long print.
+                    let bar = output::progress(sliced.commands.len() as u64, "writing G-code");
+                    let r = gcode_exec::export_with_progress(
                         &config,
                         &sliced.commands,
                         sliced.header.start_um,
                         sliced.header.initial_material,
                         &names,
                         &opt,
+                        &mut |done| bar.set_position(done),
                     );
+                    bar.finish_and_clear();
+                    return r;
                 }
             };
             if a.gcode_dialect != "plain" || a.gcode_ports.is_some() {

@@ -362,6 +362,7 @@ impl SliceForm {
             gcode_style: "run".into(),
             gcode_dialect: "plain".into(),
             gcode_ports: None,
+            gcode_max_mb: 1024,
             preview: None,
             preview_layer: None,
             layers: self.layers,

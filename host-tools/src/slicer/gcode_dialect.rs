@@ -1,7 +1,7 @@
 //! The words of each G-code dialect for a sampled executor run (`gcode_exec::Step`s):
 //! `plain` (`G0`/`G1`/`M42`/`G4`, what any firmware accepts), `reprap` (RepRapFirmware's
-//! `G1 ... P<bitmap>` with the ports mapped by `M670`) and `marlin` (`M400` then
-//! `M42 P<pin> S0|255`). What each assumes of the firmware is on `Dialect`. Only
+//! `G1 ... P<bitmap>` with the ports mapped by `M670`), `klipper` (`SET_PIN`, which
+//! Klipper schedules with the moves) and `marlin` (`M400` then `M42 P<pin> S0|255`). What each assumes of the firmware is on `Dialect`. Only
 //! formatting lives here: where moves and valve changes fall is decided before.
 
 use super::gcode::{num, GcodeStats};
@@ -36,6 +36,15 @@ pub enum Kind {
     /// head stands is `M400` (nothing moves, so it costs no time) then `M42 P<port> S<0|1>`.
     /// Assumes the ports were created with `M950 P<port> C"<pin>"` in the machine's config.
     RepRap,
+    /// Klipper: `SET_PIN PIN=dollop_valve<port> VALUE=<0|1>` between the moves, exactly
+    /// where the executor switched. Klipper schedules an `output_pin`'s `SET_PIN` at the
+    /// print time the moves queued before it end (through the toolhead's look-ahead), so
+    /// the valve switches where the head is, without stopping it: the same timing as
+    /// `Plain`. Assumes `[output_pin dollop_valve<port>]` sections for the valves' pins
+    /// in `printer.cfg`, and `minimum_cruise_ratio: 0` (Klipper's default 0.5 lowers the
+    /// peak of a move that would speed up and at once slow down; the moves here mostly
+    /// hold their speed, but the judge's planner has no such rule).
+    Klipper,
     /// Marlin: `M400` then `M42 P<pin> S<0|255>` for every valve change. Marlin runs
     /// `M42` when it reads the line, ahead of the moves still queued, so `M400` holds it
     /// until the head arrives: the head comes to a full stop at every valve change made
@@ -61,10 +70,14 @@ impl Dialect {
         match self.kind {
             Kind::Plain => "plain",
             Kind::RepRap => "reprap",
+            Kind::Klipper => "klipper",
             Kind::Marlin => "marlin",
         }
     }
 }
+
+/// Prefix of the `output_pin` names the `klipper` dialect switches (`dollop_valve0`, ..).
+pub const KLIPPER_PIN: &str = "dollop_valve";
 
 struct Writer<'a> {
     out: String,
@@ -151,7 +164,11 @@ impl Writer<'_> {
                 if changed & (1 << i) != 0 && (mask & (1 << i) != 0) == opening {
                     let port = self.dialect.port(i);
                     let s = if opening { on } else { off };
-                    let _ = writeln!(self.out, "M42 P{port} S{s}");
+                    if self.dialect.kind == Kind::Klipper {
+                        let _ = writeln!(self.out, "SET_PIN PIN={KLIPPER_PIN}{port} VALUE={s}");
+                    } else {
+                        let _ = writeln!(self.out, "M42 P{port} S{s}");
+                    }
                 }
             }
         }
@@ -200,15 +217,23 @@ pub fn write(
     );
     for i in 0..inlets {
         let name = material_names.get(i).map_or("", |s| s.as_str());
-        let what = match dialect.kind {
-            Kind::Marlin => "board pin",
-            _ => "GPIO port",
+        let _ = match dialect.kind {
+            Kind::Marlin => writeln!(
+                w.out,
+                "; valve of inlet {i} ({name}) is board pin {}",
+                dialect.port(i)
+            ),
+            Kind::Klipper => writeln!(
+                w.out,
+                "; valve of inlet {i} ({name}) is [output_pin {KLIPPER_PIN}{}]",
+                dialect.port(i)
+            ),
+            _ => writeln!(
+                w.out,
+                "; valve of inlet {i} ({name}) is GPIO port {}",
+                dialect.port(i)
+            ),
         };
-        let _ = writeln!(
-            w.out,
-            "; valve of inlet {i} ({name}) is {what} {}",
-            dialect.port(i)
-        );
     }
     w.out.push_str("G21\nG90\n");
     if dialect.kind == Kind::RepRap {
@@ -221,10 +246,9 @@ pub fn write(
         }
         w.out.push_str(" T0\n");
     }
-    for i in 0..inlets {
-        let port = dialect.port(i);
-        let _ = writeln!(w.out, "M42 P{port} S0");
-    }
+    // Every valve closed, whatever the firmware had.
+    w.valves = ((1u64 << inlets.min(32)) - 1) as u32;
+    w.m42(0);
     // To the start: Z first, then X and Y, at the travel speed (Z's top speed for Z).
     let z_f = config.motion.max_speed_mm_s[2] as f64;
     let travel_f = config.motion.travel_speed_mm_s as f64;
@@ -272,7 +296,7 @@ pub fn write(
                 w.count_switch(opened);
                 match dialect.kind {
                     Kind::RepRap => pending = Some(mask),
-                    Kind::Plain => {
+                    Kind::Plain | Kind::Klipper => {
                         w.flush_dwell();
                         w.m42(mask);
                     }
@@ -372,6 +396,18 @@ mod tests {
             ),
             "{g}"
         );
+        let (g, _) = write(
+            &steps(),
+            [0.0, 0.0, 0.6],
+            &c,
+            &[],
+            &Dialect::new(Kind::Klipper),
+        );
+        assert!(
+            g.contains("SET_PIN PIN=dollop_valve0 VALUE=1\nG4 P10\nG1 X1 F597.6\nSET_PIN PIN=dollop_valve0 VALUE=0\nSET_PIN PIN=dollop_valve1 VALUE=1\nG1 X1.25 F750\n"),
+            "{g}"
+        );
+        assert!(!g.contains("M42"), "{g}");
         let (g, _) = write(
             &steps(),
             [0.0, 0.0, 0.6],

@@ -234,6 +234,7 @@ pub fn sample_run(
     start_um: [i32; 3],
     initial: u8,
     opt: Sampling,
+    progress: &mut dyn FnMut(u64),
 ) -> Result<Vec<Step>, SliceError> {
     gcode::check_materials(commands, initial, config.inlets.len())?;
     let mut cmds = commands.to_vec();
@@ -250,9 +251,17 @@ pub fn sample_run(
     let mut sampler = Sampler::new(opt, start, config.motion.travel_speed_mm_s as f64);
     let opts = RunOptions {
         plant: false,
+        head_ramps: false,
         ..RunOptions::default()
     };
+    let mut cycle = 0u64;
     let result = dollop_sim::run::<f32>(config, &job, &opts, |c| {
+        // Every 0.1 s of the executor's time: often enough for a bar, rare enough to cost
+        // nothing.
+        if cycle.is_multiple_of(1000) {
+            progress(c.report.command_index as u64);
+        }
+        cycle += 1;
         let p = c.report.position.map(|v| v.to_f64());
         sampler.cycle(
             c.t_s,
@@ -273,12 +282,62 @@ pub fn sample_run(
 }
 
 /// Options of the export from the executor's run.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RunExport {
     /// How the run is cut into moves.
     pub sampling: Sampling,
     /// The dialect written.
     pub dialect: Dialect,
+    /// Refuse a job whose G-code would be larger, bytes (checked from the job before the
+    /// executor runs, and on the text written).
+    pub max_bytes: u64,
+}
+
+/// Default size limit of the G-code, bytes: 1 GiB, about 1.5 million print segments of
+/// the bundled designs, a day of printing. The text is built in memory, several times its
+/// size on the way.
+pub const DEFAULT_MAX_BYTES: u64 = 1 << 30;
+
+impl Default for RunExport {
+    fn default() -> Self {
+        RunExport {
+            sampling: Sampling::default(),
+            dialect: Dialect::default(),
+            max_bytes: DEFAULT_MAX_BYTES,
+        }
+    }
+}
+
+/// Fewest bytes a move takes in any dialect (`G1 X1.2345 Y1.2345\n`, with one coordinate
+/// changing the line is shorter, but a bead's moves change X and Y or carry a feed).
+const MIN_MOVE_BYTES: u64 = 14;
+
+/// A lower bound of the G-code's size, bytes: every print move is at most
+/// `max_move_mm` long, so the print path needs at least its length over that many moves.
+pub fn min_bytes(commands: &[Command], max_move_mm: f64) -> u64 {
+    let mut len_um = 0.0f64;
+    let mut moves = 0u64;
+    for c in commands {
+        match *c {
+            Command::Print { dx, dy, .. } => {
+                len_um += (dx as f64).hypot(dy as f64);
+                moves += 1;
+            }
+            Command::Travel { .. } | Command::Layer { .. } => moves += 1,
+            Command::Dwell { .. } | Command::End => {}
+        }
+    }
+    let cut = (len_um * 1e-3 / max_move_mm.max(1e-3)).ceil() as u64;
+    cut.max(moves).saturating_mul(MIN_MOVE_BYTES)
+}
+
+fn too_large(bytes: u64, limit: u64, what: &str) -> SliceError {
+    let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+    SliceError::Option(format!(
+        "G-code: {what} {:.1} MiB, over the limit of {:.1} MiB (--gcode-max-mb); raise the limit if the disk and memory allow (the text is built in memory), slice a smaller or coarser design, or send the job file to a dollop board, which needs no G-code",
+        mb(bytes),
+        mb(limit)
+    ))
 }
 
 /// Exports a job as G-code from the executor's run on `config` (see the module's doc).
@@ -290,7 +349,37 @@ pub fn export(
     material_names: &[String],
     opt: &RunExport,
 ) -> Result<(String, GcodeStats), SliceError> {
-    let sampled = sample_run(config, commands, start_um, initial, opt.sampling)?;
+    export_with_progress(
+        config,
+        commands,
+        start_um,
+        initial,
+        material_names,
+        opt,
+        &mut |_| {},
+    )
+}
+
+/// [`export`], calling `progress` with the number of the job's commands done as the
+/// executor runs through them (the run is nearly all of the time).
+pub fn export_with_progress(
+    config: &Config,
+    commands: &[Command],
+    start_um: [i32; 3],
+    initial: u8,
+    material_names: &[String],
+    opt: &RunExport,
+    progress: &mut dyn FnMut(u64),
+) -> Result<(String, GcodeStats), SliceError> {
+    let least = min_bytes(commands, opt.sampling.max_move_mm);
+    if least > opt.max_bytes {
+        return Err(too_large(
+            least,
+            opt.max_bytes,
+            "this job's would be at least",
+        ));
+    }
+    let sampled = sample_run(config, commands, start_um, initial, opt.sampling, progress)?;
     let start = start_um.map(|v| v as f64 * 1e-3);
     let accel = config.motion.max_accel_mm_s2.map(|a| a as f64);
     // Each pass's input is dropped as soon as the next exists: a long job's steps run to
@@ -299,13 +388,11 @@ pub fn export(
     drop(sampled);
     let steps = gcode_ramps::run_ups(&centred, start, accel);
     drop(centred);
-    Ok(gcode_dialect::write(
-        &steps,
-        start,
-        config,
-        material_names,
-        &opt.dialect,
-    ))
+    let (text, stats) = gcode_dialect::write(&steps, start, config, material_names, &opt.dialect);
+    if text.len() as u64 > opt.max_bytes {
+        return Err(too_large(text.len() as u64, opt.max_bytes, "this job's is"));
+    }
+    Ok((text, stats))
 }
 
 #[cfg(test)]
@@ -398,5 +485,82 @@ mod tests {
         // The valve change at the start of cycle 50 happens where cycle 49 ended.
         assert!((to[0] - 0.05).abs() < 1e-12, "{steps:?}");
         assert_eq!(steps[3], Step::Valves(2));
+    }
+
+    #[test]
+    fn a_job_over_the_size_limit_is_refused_before_or_after_the_run() {
+        let config: Config = toml::from_str(
+            &std::fs::read_to_string(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../configs/seed-paper-valves.toml"
+            ))
+            .unwrap(),
+        )
+        .unwrap();
+        // 20 beads of 10 mm: at least 800 moves of at most 0.25 mm.
+        let mut cmds = vec![Command::Travel {
+            x: 90_000,
+            y: 90_000,
+            z: 800,
+        }];
+        for r in 0..20 {
+            let dx = if r % 2 == 0 { 10_000 } else { -10_000 };
+            cmds.push(Command::Print {
+                dx,
+                dy: 0,
+                material: (r % 2) as u8,
+            });
+            cmds.push(Command::Print {
+                dx: 0,
+                dy: 800,
+                material: (r % 2) as u8,
+            });
+        }
+        cmds.push(Command::End);
+        let least = min_bytes(&cmds, 0.25);
+        assert!(
+            (800 * MIN_MOVE_BYTES..900 * MIN_MOVE_BYTES).contains(&least),
+            "{least}"
+        );
+        let run = |max_bytes: u64, calls: &mut u32| {
+            let opt = RunExport {
+                max_bytes,
+                ..RunExport::default()
+            };
+            export_with_progress(
+                &config,
+                &cmds,
+                [90_000, 90_000, 800],
+                0,
+                &[],
+                &opt,
+                &mut |_| *calls += 1,
+            )
+        };
+        // Below the lower bound: refused at once, the executor never runs.
+        let mut calls = 0;
+        let e = run(least - 1, &mut calls).unwrap_err().to_string();
+        assert!(
+            e.contains("would be at least") && e.contains("--gcode-max-mb"),
+            "{e}"
+        );
+        assert_eq!(calls, 0);
+        // Above the bound but below the text: refused after the run.
+        let mut calls = 0;
+        let (text, _) = run(DEFAULT_MAX_BYTES, &mut calls).unwrap();
+        assert!(
+            calls > 0 && text.len() as u64 > least,
+            "{} vs {least}",
+            text.len()
+        );
+        let mut calls = 0;
+        let e = run(text.len() as u64 - 1, &mut calls)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("this job's is") && e.contains("over the limit"),
+            "{e}"
+        );
+        assert!(run(text.len() as u64, &mut calls).is_ok());
     }
 }

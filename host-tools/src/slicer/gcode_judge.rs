@@ -112,6 +112,30 @@ pub fn parse(text: &str) -> Vec<Op> {
                 ops.push(Op::Dwell(t));
             }
             "M400" => ops.push(Op::Sync),
+            // Klipper's `SET_PIN PIN=<name><port> VALUE=<v>`: the valve ports are the
+            // number ending the `output_pin` name (`gcode_dialect::KLIPPER_PIN`).
+            "SET_PIN" => {
+                let (mut p, mut s) = (None, None);
+                for w in words {
+                    let Some((key, val)) = w.split_once('=') else {
+                        continue;
+                    };
+                    if key.eq_ignore_ascii_case("PIN") {
+                        let digits =
+                            val.len() - val.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+                        p = val[val.len() - digits..].parse::<u32>().ok();
+                    } else if key.eq_ignore_ascii_case("VALUE") {
+                        s = val
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite())
+                            .map(|v| v > 0.0);
+                    }
+                }
+                if let (Some(port), Some(on)) = (p, s) {
+                    ops.push(Op::Valve { port, on });
+                }
+            }
             "M670" => {
                 let mut ports = Vec::new();
                 let mut advance_s = 0.0;
@@ -149,6 +173,14 @@ impl Firmware {
             max_accel: config.motion.max_accel_mm_s2.map(|v| v as f64),
             junction_deviation_mm: 0.013,
         }
+    }
+
+    /// Klipper's planner: its `square_corner_velocity` (mm/s) is a junction deviation of
+    /// `scv^2 (sqrt(2) - 1) / a` at the X/Y acceleration limit `a`.
+    pub fn with_square_corner_velocity(mut self, scv: f64) -> Self {
+        let a = self.max_accel[0].min(self.max_accel[1]).max(1e-9);
+        self.junction_deviation_mm = scv * scv * (core::f64::consts::SQRT_2 - 1.0) / a;
+        self
     }
 
     /// Highest speed at which the junction from direction `a` into `b` (unit vectors) is
@@ -783,7 +815,14 @@ mod tests {
                 Op::Sync,
             ]
         );
-        let ops = parse("G1 Ä5 X\u{e9} Xinf\nM42 P-1 S1\nM42 P\nG4 Pxyz\n\u{1F600}\nM670 P:x:\n");
+        assert_eq!(
+            parse("SET_PIN PIN=dollop_valve12 VALUE=1\nset_pin pin=dollop_valve0 value=0.0\n"),
+            vec![
+                Op::Valve { port: 12, on: true },
+                Op::Valve { port: 0, on: false }
+            ]
+        );
+        let ops = parse("G1 Ä5 X\u{e9} Xinf\nM42 P-1 S1\nM42 P\nG4 Pxyz\n\u{1F600}\nM670 P:x:\nSET_PIN PIN=valve VALUE=1\nSET_PIN PIN=v1 VALUE=nan\nSET_PIN PIN=v9999999999999 VALUE=1\nSET_PIN PIN==\u{e9}1 VALUE\n");
         assert!(ops.iter().all(|o| !matches!(o, Op::Valve { .. })));
     }
 
