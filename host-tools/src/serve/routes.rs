@@ -4,7 +4,7 @@
 //! board status ten times a second). Every failure is an `ApiError` the page shows.
 
 use super::assets;
-use super::boards::{Order, View};
+use super::boards::{Fallback, Order, View};
 use super::design::{self, Field, SliceForm, Upload};
 use super::error::{ApiError, ApiResult};
 use super::simulate::{self, SimRun};
@@ -450,6 +450,9 @@ struct ActionReq {
     mm: Option<f64>,
     inlet: Option<u8>,
     seconds: Option<f64>,
+    /// The config chosen on the Design page (TOML), for home, jog and valve tests on a
+    /// board without one.
+    config: Option<String>,
 }
 
 async fn board_action(
@@ -478,6 +481,20 @@ async fn board_action(
         }
         *ctl = Some(r.tab.clone());
     }
+    // Home, jog and valve tests before any job: the Design page's config, else --config.
+    let fallback = || -> ApiResult<Fallback> {
+        match r.config.as_deref() {
+            Some(text) => design::check(text)
+                .map(|c| Some(Box::new(c.config)))
+                .map_err(|e| {
+                    ApiError::bad(format!(
+                        "the config chosen on the Design page does not check ({}); fix it there first",
+                        e.error
+                    ))
+                }),
+            None => Ok(st.cli_config.clone().map(Box::new)),
+        }
+    };
     let order = match action.as_str() {
         "claim" => {
             return Ok(Json(
@@ -492,8 +509,13 @@ async fn board_action(
         "unqueue" => Order::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
         "pause" => Order::Pause,
         "resume" => Order::Resume,
-        "abort" => Order::Abort,
-        "home" => Order::Home,
+        "abort" => {
+            return match b.abort().await {
+                Ok(m) => Ok(Json(json!({ "message": m }))),
+                Err(m) => Err(ApiError::conflict(m)),
+            }
+        }
+        "home" => Order::Home(fallback()?),
         "jog" => {
             let axis = match r.axis.as_deref() {
                 Some("x") | Some("X") => dollop::Axis::X,
@@ -504,12 +526,14 @@ async fn board_action(
             Order::Jog(
                 axis,
                 r.mm.ok_or_else(|| ApiError::bad("jog: give a distance in mm"))?,
+                fallback()?,
             )
         }
         "valve" => Order::Valve(
             r.inlet
                 .ok_or_else(|| ApiError::bad("valve test: choose an inlet"))?,
             r.seconds.unwrap_or(1.0),
+            fallback()?,
         ),
         other => return Err(ApiError::missing(format!("no board action {other:?}"))),
     };

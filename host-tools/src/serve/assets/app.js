@@ -530,6 +530,8 @@ let lastBoards = null;
 const boardViews = {}; // board id -> zoom state of its canvas
 
 async function boardAction(id, action, extra = {}, force = false) {
+  // Home, jog and valve tests on a board without a config load the Design page's.
+  if (["home", "jog", "valve"].includes(action) && app.config) extra = { ...extra, config: app.config.text };
   try {
     const r = await postJson(`/api/boards/${id}/${action}`, { tab: TAB, force, ...extra });
     toast(r.message);
@@ -627,7 +629,10 @@ function renderBoards(data) {
     q(".print-progress").value = b.progress;
     const valves = [0, 1, 2, 3].map((i) => ((b.valves >> i) & 1 ? "●" : "○")).join("");
     q(".live").textContent = `${(b.progress * 100).toFixed(1)} %  ETA ${fmtTime(b.eta_s)}  elapsed ${fmtTime(b.elapsed_s)}\n` +
-      `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  flow ${b.flow.toFixed(2)} mm³/s  ${b.homed ? "homed" : "not homed"}`;
+      `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  ${b.homed ? "homed" : "not homed"}\n` +
+      (b.flow_source === "plant"
+        ? `flow ${b.flow.toFixed(2)} mm³/s (reference plant; the board's model says ${b.flow_model.toFixed(2)})  lines ${b.line_kpa.map((p) => p.toFixed(1)).join(" / ")} kPa`
+        : `flow ${b.flow.toFixed(2)} mm³/s (the board's model)`);
     q(".live").style.whiteSpace = "pre";
     q(".upload-row").hidden = !b.upload;
     if (b.upload) {
