@@ -41,7 +41,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/sims/{id}", get(sim_get))
         .route("/api/sims/{id}/events", get(sim_events))
         .route("/api/sims/{id}/{file}", get(sim_file))
-        .route("/api/calibrate/rheology", post(calibrate_rheology))
+        .route("/api/calibrate/{what}", post(calibrate))
         .route("/api/boards/events", get(board_events))
         .route("/api/boards/{id}/{action}", post(board_action))
         .fallback(|| async { ApiError::missing("no such page") })
@@ -543,9 +543,13 @@ async fn board_action(
     }
 }
 
-async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrate::Shown>> {
+async fn calibrate(
+    Path(what): Path<String>,
+    mut mp: Multipart,
+) -> ApiResult<Json<super::calibrate::Shown>> {
     let mut data = None;
-    let mut kind = String::new();
+    let (mut kind, mut inlet, mut config, mut density) =
+        (String::new(), String::new(), None, String::new());
     while let Some(field) = mp.next_field().await? {
         match field.name().unwrap_or("") {
             "data" => {
@@ -553,11 +557,42 @@ async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrat
                 data = Some((name, field.bytes().await?.to_vec()));
             }
             "kind" => kind = field.text().await?,
+            "inlet" => inlet = field.text().await?,
+            "config" => config = Some(field.text().await?),
+            "density" => density = field.text().await?,
             _ => {}
         }
     }
     let (name, bytes) = data.ok_or_else(|| ApiError::bad("choose a measurement CSV"))?;
-    Ok(Json(
-        blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
-    ))
+    Ok(Json(match what.as_str() {
+        "rheology" => blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
+        "lag" => blocking(move || super::calibrate::lag(&name, &bytes, &inlet)).await?,
+        "flow" => {
+            let config = match config.as_deref().filter(|t| !t.trim().is_empty()) {
+                Some(t) => Some(
+                    design::check(t)
+                        .map_err(|e| {
+                            ApiError::bad(format!(
+                                "the Design page's config does not check ({}); fix it there first",
+                                e.error
+                            ))
+                        })?
+                        .config,
+                ),
+                None => None,
+            };
+            let density = match density.trim() {
+                "" => None,
+                d => Some(d.parse::<f64>().map_err(|_| {
+                    ApiError::bad(format!("density {d:?}: give a number in g/ml, e.g. 1.05"))
+                })?),
+            };
+            blocking(move || super::calibrate::flow(&name, &bytes, config, density)).await?
+        }
+        other => {
+            return Err(ApiError::missing(format!(
+                "no calibration {other:?}: rheology, flow or lag"
+            )))
+        }
+    }))
 }

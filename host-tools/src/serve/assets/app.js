@@ -656,36 +656,56 @@ function followBoards() {
 // ---------------------------------------------------------------- calibrate
 let calFragment = null;
 $("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
+function calWhatChanged() {
+  const what = $("cal-what").value;
+  for (const e of document.querySelectorAll("#page-calibrate [data-for]")) e.hidden = e.dataset.for !== what;
+}
+$("cal-what").addEventListener("change", calWhatChanged);
 $("cal-run").addEventListener("click", async () => {
   showError("cal-error", "");
   const f = $("cal-file").files[0];
   if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+  const what = $("cal-what").value;
   const form = new FormData();
   form.append("data", f, f.name);
   form.append("kind", $("cal-kind").value);
+  form.append("inlet", $("cal-lag-inlet").value);
+  form.append("density", $("cal-density").value);
+  // Flow is fitted in the channel of the Design page's config (for the fragment).
+  if (what === "flow" && app.config) form.append("config", app.config.text);
   try {
-    const r = await api("/api/calibrate/rheology", { method: "POST", body: form });
+    const r = await api(`/api/calibrate/${what}`, { method: "POST", body: form });
     $("cal-report").textContent = r.report;
     calFragment = r.fragment;
-    $("cal-fragment").textContent = r.fragment || "(no model the core accepts: see the verdicts)";
+    $("cal-fragment").textContent = r.fragment || "(no fragment: see the verdicts)";
     $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
   } catch (e) {
     showError("cal-error", e.message);
   }
 });
-// The fragment's `key = value` lines become edits of that inlet in the config editor.
+// The fragment's `key = value` lines become edits of that inlet in the config editor; a
+// fragment of several [[inlet]] tables (flow: one per material) fills that inlet and the
+// next ones.
 $("cal-apply").addEventListener("click", async () => {
   if (!calFragment || !app.config) return showError("cal-error", "Fit a measurement first.");
-  const inlet = $("cal-inlet").value;
-  const edits = calFragment.split("\n").filter((l) => l.includes("=") && !l.trim().startsWith("#")).map((l) => {
-    const i = l.indexOf("=");
-    return { path: `inlet[${inlet}].${l.slice(0, i).trim()}`, raw: l.slice(i + 1).trim() };
-  });
+  const first = Number($("cal-inlet").value);
+  let inlet = first - 1;
+  const edits = [];
+  const tables = calFragment.includes("[[inlet]]");
+  if (!tables) inlet = first;
+  for (const l of calFragment.split("\n")) {
+    const t = l.trim();
+    if (t === "[[inlet]]") { inlet += 1; continue; }
+    if (!t.includes("=") || t.startsWith("#")) continue;
+    const i = t.indexOf("=");
+    edits.push({ path: `inlet[${inlet}].${t.slice(0, i).trim()}`, raw: t.slice(i + 1).trim() });
+  }
+  if (!edits.length) return showError("cal-error", "This fragment has nothing to apply (see its comments).");
   try {
     const c = await postJson("/api/config/check", { text: app.config.text, edits });
     renderConfig(c);
     clearFieldErrors();
-    toast(`Applied to inlet ${inlet}; the config on the Design page now uses it.`);
+    toast(inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
   } catch (e) {
     showError("cal-error", e.message);
   }
