@@ -145,91 +145,125 @@ fn field_at(text: &str, at: usize) -> Option<String> {
     None
 }
 
+fn parse_doc(text: &str) -> ApiResult<toml_edit::DocumentMut> {
+    // The same TOML as `parse_table` takes (checked there first, for its error's span).
+    parse_table(text)?;
+    text.parse::<toml_edit::DocumentMut>().map_err(|e| {
+        ApiError::bad(format!(
+            "the config is not valid TOML: {}",
+            one_line(e.message())
+        ))
+        .with_span(text, e.span())
+    })
+}
+
+/// A value as the editor shows it: its TOML without the spacing and comments around it.
+fn raw_of(item: &toml_edit::Item) -> Option<String> {
+    let mut v = match item {
+        toml_edit::Item::Value(v) => v.clone(),
+        // A sub-table written as `[inlet.rheology]`: shown inline, as one field.
+        toml_edit::Item::Table(t) => toml_edit::Value::InlineTable(t.clone().into_inline_table()),
+        _ => return None,
+    };
+    v.decor_mut().clear();
+    Some(v.to_string())
+}
+
 /// The fields of a config's TOML, in file order (sections, then `[[inlet]]` tables).
 pub fn fields(text: &str) -> ApiResult<Vec<Field>> {
-    let table = parse_table(text)?;
+    let doc = parse_doc(text)?;
     let mut out = Vec::new();
-    for (section, v) in &table {
-        match v {
-            toml::Value::Table(t) => {
-                for (k, v) in t {
-                    out.push(Field {
-                        path: format!("{section}.{k}"),
-                        raw: v.to_string(),
-                    });
+    for (section, item) in doc.iter() {
+        match item {
+            toml_edit::Item::Table(t) => {
+                for (k, v) in t.iter() {
+                    if let Some(raw) = raw_of(v) {
+                        out.push(Field {
+                            path: format!("{section}.{k}"),
+                            raw,
+                        });
+                    }
                 }
             }
-            toml::Value::Array(a) if a.iter().all(|x| x.is_table()) && !a.is_empty() => {
+            toml_edit::Item::ArrayOfTables(a) => {
                 for (i, t) in a.iter().enumerate() {
-                    if let toml::Value::Table(t) = t {
-                        for (k, v) in t {
+                    for (k, v) in t.iter() {
+                        if let Some(raw) = raw_of(v) {
                             out.push(Field {
                                 path: format!("{section}[{i}].{k}"),
-                                raw: v.to_string(),
+                                raw,
                             });
                         }
                     }
                 }
             }
-            other => out.push(Field {
-                path: section.clone(),
-                raw: other.to_string(),
-            }),
+            other => {
+                if let Some(raw) = raw_of(other) {
+                    out.push(Field {
+                        path: section.to_string(),
+                        raw,
+                    });
+                }
+            }
         }
     }
     Ok(out)
 }
 
-/// Sets `path` (a `Field::path`) in `table` to `value`.
-fn set(table: &mut toml::Table, path: &str, value: toml::Value) -> ApiResult<()> {
+/// Sets `path` (a `Field::path`) in `doc` to `value`, keeping the old value's spacing and
+/// comment on its line.
+fn set(doc: &mut toml_edit::DocumentMut, path: &str, mut value: toml_edit::Value) -> ApiResult<()> {
     let unknown = || ApiError::bad(format!("{path}: no such field in this config")).at(path);
     let (head, key) = match path.split_once('.') {
         Some((h, k)) => (h, Some(k)),
         None => (path, None),
     };
-    let Some(key) = key else {
-        table.insert(head.to_string(), value);
-        return Ok(());
-    };
-    let slot = match head.split_once('[') {
-        Some((name, idx)) => {
+    let table: &mut toml_edit::Table = match (key, head.split_once('[')) {
+        (None, _) => doc.as_table_mut(),
+        (Some(_), Some((name, idx))) => {
             let i: usize = idx.trim_end_matches(']').parse().map_err(|_| unknown())?;
-            table
-                .get_mut(name)
-                .and_then(|v| v.as_array_mut())
+            doc.get_mut(name)
+                .and_then(|v| v.as_array_of_tables_mut())
                 .and_then(|a| a.get_mut(i))
-                .and_then(|v| v.as_table_mut())
+                .ok_or_else(unknown)?
         }
-        None => table.get_mut(head).and_then(|v| v.as_table_mut()),
+        (Some(_), None) => doc
+            .get_mut(head)
+            .and_then(|v| v.as_table_mut())
+            .ok_or_else(unknown)?,
+    };
+    let key = key.unwrap_or(head);
+    match table.get_mut(key) {
+        Some(toml_edit::Item::Value(old)) => {
+            *value.decor_mut() = old.decor().clone();
+            *old = value;
+        }
+        Some(item) => *item = toml_edit::Item::Value(value),
+        None => {
+            table.insert(key, toml_edit::Item::Value(value));
+        }
     }
-    .ok_or_else(unknown)?;
-    slot.insert(key.to_string(), value);
     Ok(())
 }
 
-/// Applies the editor's edits to `text`; each value is TOML (`0.8`, `"auto"`).
+/// Applies the editor's edits to `text`; each value is TOML (`0.8`, `"auto"`). The rest
+/// of the file stays as written: its order, comments and spacing.
 pub fn apply(text: &str, edits: &[Field]) -> ApiResult<String> {
     if edits.is_empty() {
         return Ok(text.to_string());
     }
-    let mut table = parse_table(text)?;
+    let mut doc = parse_doc(text)?;
     for e in edits {
-        let wrapped = format!("v = {}", e.raw);
-        let value = wrapped
-            .parse::<toml::Table>()
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .ok_or_else(|| {
-                ApiError::bad(format!(
-                    "{}: {:?} is not a value (a number, \"text\" in quotes, [a, b] or {{ k = v }})",
-                    e.path, e.raw
-                ))
-                .at(&e.path)
-            })?;
-        set(&mut table, &e.path, value)?;
+        let value = e.raw.trim().parse::<toml_edit::Value>().map_err(|_| {
+            ApiError::bad(format!(
+                "{}: {:?} is not a value (a number, \"text\" in quotes, [a, b] or {{ k = v }})",
+                e.path, e.raw
+            ))
+            .at(&e.path)
+        })?;
+        set(&mut doc, &e.path, value)?;
     }
-    toml::to_string(&table)
-        .map_err(|e| ApiError::internal(format!("cannot write the config back: {e}")))
+    Ok(doc.to_string())
 }
 
 /// The field of a core validation error, as the editor names it.
@@ -716,6 +750,30 @@ mod tests {
             "{}",
             e.error
         );
+    }
+
+    #[test]
+    fn an_edit_keeps_the_files_order_and_comments() {
+        let before = seed();
+        let after = apply(before, &edit("inlet[1].valve_open_delay_ms", "12.5")).expect("applies");
+        // Only that value changed: every other line is as written, comments included.
+        let changed: Vec<(&str, &str)> = before
+            .lines()
+            .zip(after.lines())
+            .filter(|(a, b)| a != b)
+            .collect();
+        assert_eq!(before.lines().count(), after.lines().count(), "{after}");
+        assert_eq!(changed.len(), 1, "{changed:?}");
+        assert_eq!(changed[0].1, "valve_open_delay_ms = 12.5");
+        assert!(after.starts_with("# "), "{after}");
+        // The editor lists the fields in file order: [channel] before [motion].
+        let f = fields(&after).expect("fields");
+        let pos = |p: &str| f.iter().position(|x| x.path == p).unwrap_or(usize::MAX);
+        assert!(pos("channel.nozzle_diameter_mm") < pos("motion.print_speed_mm_s"));
+        assert!(pos("inlet[0].material") < pos("inlet[0].rheology"));
+        // A value that is not TOML names its field.
+        let e = apply(before, &edit("motion.print_speed_mm_s", "fast")).expect_err("refused");
+        assert_eq!(e.field.as_deref(), Some("motion.print_speed_mm_s"));
     }
 
     #[test]
