@@ -638,8 +638,14 @@ pub struct Figures {
     pub travel_mm: f64,
     /// Job file size, bytes.
     pub job_bytes: usize,
-    /// Print time estimated from lengths and speeds (no acceleration, no switch waits), s.
+    /// Estimated print time, s: how long the executor takes over the job in virtual time
+    /// (ramps, corners, valve waits and switches included; no plant), or lengths over
+    /// speeds if that run could not be made.
     pub est_time_s: f64,
+    /// How `est_time_s` was found, in words for the page.
+    pub est_time_from: String,
+    /// Lengths over speeds (no acceleration, no waits), s: for comparison.
+    pub length_time_s: f64,
     /// Commands in the job.
     pub commands: usize,
 }
@@ -648,6 +654,16 @@ pub struct Figures {
 pub fn figures(s: &Sliced, config: &Config) -> Figures {
     let st = &s.stats;
     let print = st.print_mm + st.prime_mm;
+    let length_time_s = print / (config.motion.print_speed_mm_s as f64).max(1e-3)
+        + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3);
+    let (est_time_s, est_time_from) = match executor_time(s, config) {
+        Ok(t) => (
+            t,
+            "a run of the executor in virtual time (ramps and valve waits included; no plant)"
+                .to_string(),
+        ),
+        Err(e) => (length_time_s, format!("lengths over speeds ({e})")),
+    };
     Figures {
         name: s.name.clone(),
         segments: s.header.print_segments,
@@ -658,9 +674,31 @@ pub fn figures(s: &Sliced, config: &Config) -> Figures {
         print_mm: print,
         travel_mm: st.travel_mm,
         job_bytes: s.to_bytes().len(),
-        est_time_s: print / (config.motion.print_speed_mm_s as f64).max(1e-3)
-            + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3),
+        est_time_s,
+        est_time_from,
+        length_time_s,
         commands: s.commands.len(),
+    }
+}
+
+/// Virtual time the executor (in the board's f32) takes over the job: no plant, no
+/// outputs kept, so it costs the executor's ticks only.
+pub fn executor_time(s: &Sliced, config: &Config) -> Result<f64, String> {
+    let job = dollop_sim::Job {
+        start_um: s.header.start_um,
+        initial_material: s.header.initial_material,
+        commands: s.commands.clone(),
+    };
+    let opts = dollop_sim::RunOptions {
+        plant: false,
+        // A day of printing is past any job the dashboard slices.
+        max_time_s: 86_400.0,
+        ..Default::default()
+    };
+    let r = dollop_sim::run::<f32>(config, &job, &opts, |_| {}).map_err(|e| e.to_string())?;
+    match r.fault {
+        Some(f) => Err(format!("the executor stopped the job: {f}")),
+        None => Ok(r.time_s),
     }
 }
 
@@ -803,6 +841,29 @@ mod tests {
         assert_eq!(s.name, "cube-shell.stl + cube-ball.stl");
         let f = figures(&s, &c.config);
         assert!(f.segments > 10 && f.switches > 0, "{f:?}");
+        // The executor's time: the same job in the simulator's own run, and longer than
+        // lengths over speeds (ramps, valve waits).
+        assert!(
+            f.est_time_from.starts_with("a run of the executor"),
+            "{}",
+            f.est_time_from
+        );
+        let job = dollop_sim::Job {
+            start_um: s.header.start_um,
+            initial_material: s.header.initial_material,
+            commands: s.commands.clone(),
+        };
+        let opts = dollop_sim::RunOptions {
+            plant: false,
+            ..Default::default()
+        };
+        let r = dollop_sim::run::<f32>(&c.config, &job, &opts, |_| {}).expect("runs");
+        assert_eq!(f.est_time_s, r.time_s);
+        eprintln!(
+            "cube shell + ball: executor {:.1} s, lengths over speeds {:.1} s",
+            f.est_time_s, f.length_time_s
+        );
+        assert!(f.est_time_s > f.length_time_s, "{f:?}");
         let e = slice(&[], &c.config, &form).err().map(|e| e.error);
         assert!(e.is_some_and(|e| e.contains("choose a design")));
     }

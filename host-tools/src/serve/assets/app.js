@@ -263,7 +263,7 @@ function setJob(job) {
     ["beads", f.beads],
     ["printed / travel", `${f.print_mm.toFixed(0)} mm / ${f.travel_mm.toFixed(0)} mm`],
     ["job file", `${f.job_bytes} bytes`],
-    ["estimated print time", fmtTime(f.est_time_s) + " (lengths over speeds; Simulate gives the exact time)"],
+    ["estimated print time", `${fmtTime(f.est_time_s)} (from ${f.est_time_from}; lengths over speeds alone: ${fmtTime(f.length_time_s)})`],
   ].map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", { class: "fig-" + k.replace(/\W+/g, "-") }, String(v)))));
   const sel = $("layer-select");
   sel.replaceChildren(el("option", { value: "all" }, "all"));
