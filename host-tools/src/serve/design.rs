@@ -365,6 +365,11 @@ pub struct SliceForm {
     pub min_run_mm: Option<f64>,
     /// --connect-mm
     pub connect_mm: Option<f64>,
+    /// --markers: fiducial markers around the part for `dollop inspect`.
+    pub markers: bool,
+    /// --calibration-pattern: the pattern for `dollop inspect --suggest` instead of a
+    /// design (with markers).
+    pub calibration_pattern: bool,
 }
 
 fn nonempty(s: &Option<String>) -> Option<String> {
@@ -416,10 +421,8 @@ impl SliceForm {
             max_segments: d.max_segments,
             max_triangles: d.max_triangles,
             max_3mf_mb: d.max_3mf_bytes >> 20,
-            // The dashboard has no control for these yet (the CLI's `slice --markers` and
-            // `--calibration-pattern`).
-            markers: false,
-            calibration_pattern: false,
+            markers: self.markers,
+            calibration_pattern: self.calibration_pattern,
         })
     }
 }
@@ -461,6 +464,9 @@ pub(super) fn safe_name(name: &str, fallback: &str) -> String {
 /// Slices uploaded designs for `config` with `form`'s options. Blocking: run it off the
 /// async threads.
 pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    if form.calibration_pattern {
+        return calibration_pattern(config, form);
+    }
     if uploads.is_empty() {
         return Err(ApiError::bad(
             "choose a design: an image, one STL per material, or a 3MF",
@@ -487,9 +493,32 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     // The slicer names the files in its messages: the user's names, not our folder's.
     let ours = format!("{}/", dir.path().display());
-    let mut sliced = slicer::slice_files(&paths, config, &opts)
-        .map_err(|e| ApiError::bad(e.to_string().replace(&ours, "")))?;
+    let strip = |e: slicer::SliceError| ApiError::bad(e.to_string().replace(&ours, ""));
+    let mut sliced = slicer::slice_files(&paths, config, &opts).map_err(strip)?;
+    if args.markers {
+        let machine = slicer::validate(Path::new("config"), config).map_err(strip)?;
+        sliced = slicer::with_markers(sliced, config, &machine).map_err(strip)?;
+    }
     sliced.name = sliced.name.replace(&ours, "");
+    Ok(sliced)
+}
+
+/// The calibration pattern of `dollop slice --calibration-pattern` for this config (every
+/// pair of its materials, switches at several distances), with markers.
+fn calibration_pattern(config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    let args = form.to_args()?;
+    let opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
+    let bad = |e: slicer::SliceError| ApiError::bad(e.to_string());
+    let machine = slicer::validate(Path::new("config"), config).map_err(bad)?;
+    let design = slicer::calibration::pattern(
+        machine.inlet_count(),
+        config.channel.line_pitch_mm as f64,
+        slicer::toolpath::transit_mm(&machine),
+    );
+    let path = slicer::calibration::path_options(opts.path);
+    let sliced = slicer::slice_design(&design, config, &machine, &path).map_err(bad)?;
+    let mut sliced = slicer::with_markers(sliced, config, &machine).map_err(bad)?;
+    sliced.name = "calibration pattern".into();
     Ok(sliced)
 }
 
@@ -866,6 +895,35 @@ mod tests {
         assert!(f.est_time_s > f.length_time_s, "{f:?}");
         let e = slice(&[], &c.config, &form).err().map(|e| e.error);
         assert!(e.is_some_and(|e| e.contains("choose a design")));
+    }
+
+    #[test]
+    fn markers_and_the_calibration_pattern_slice() {
+        let c = check(seed()).expect("config");
+        let uploads = [Upload {
+            name: "chessboard.png".into(),
+            bytes: DESIGNS[1].1.to_vec(),
+        }];
+        let mut form = SliceForm {
+            width_mm: Some(8.0),
+            ..Default::default()
+        };
+        let plain = slice(&uploads, &c.config, &form).expect("slices");
+        form.markers = true;
+        let marked = slice(&uploads, &c.config, &form).expect("slices with markers");
+        assert!(
+            marked.header.print_segments > plain.header.print_segments,
+            "{} vs {}",
+            marked.header.print_segments,
+            plain.header.print_segments
+        );
+        let form = SliceForm {
+            calibration_pattern: true,
+            ..Default::default()
+        };
+        let p = slice(&[], &c.config, &form).expect("the pattern slices without a design");
+        assert_eq!(p.name, "calibration pattern");
+        assert!(figures(&p, &c.config).switches >= 2);
     }
 
     #[test]

@@ -191,6 +191,8 @@ function sliceOptions() {
     if (v !== "") o[k] = v;
   }
   o.invert = $("opt-invert").checked;
+  o.markers = $("opt-markers").checked;
+  o.calibration_pattern = $("opt-calibration_pattern").checked;
   return o;
 }
 
@@ -220,7 +222,7 @@ function upload(path, form, bar) {
 
 $("slice").addEventListener("click", async () => {
   showError("slice-error", "");
-  if (!app.files.length) return showError("slice-error", "Choose a design first: an image, one STL per material, or a 3MF.");
+  if (!app.files.length && !$("opt-calibration_pattern").checked) return showError("slice-error", "Choose a design first: an image, one STL per material, or a 3MF (or tick Calibration pattern).");
   const text = await checkConfig();
   if (!text) return showError("slice-error", "Fix the config first (see the field marked in red).");
   const form = new FormData();
