@@ -693,7 +693,7 @@ $("cal-apply").addEventListener("click", async () => {
   const first = Number($("cal-inlet").value);
   let inlet = first - 1;
   const edits = [];
-  const tables = calFragment.includes("[[inlet]]");
+  const tables = calFragment.split("\n").some((l) => l.trim() === "[[inlet]]");
   if (!tables) inlet = first;
   for (const l of calFragment.split("\n")) {
     const t = l.trim();
