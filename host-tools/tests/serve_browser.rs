@@ -3,8 +3,11 @@
 //! corrupt upload refused, a config error shown at its field, a bundled design uploaded
 //! through the file picker and sliced with its preview drawn, a simulation with its report
 //! and heatmap, a print on the simulated board followed to 100 % with the status pushed
-//! live, pause, resume and abort, a second tab refused until it takes control, and a
-//! rheology calibration applied to the config. Saves screenshots of the main pages under the target
+//! live (the flow shown being the reference plant's), pause, resume and abort, a second
+//! tab refused until it takes control, rheology, flow and lag calibrations applied to the
+//! config, a small 3MF dropped on the page (a synthetic drop event carrying the file)
+//! sliced and previewed, and a browser closed mid-print: a new session finds the print
+//! going on and follows it to the end. Saves screenshots of the main pages under the target
 //! directory (`tmp/serve-screenshots`). Without chromedriver it says it skipped, except in
 //! CI (`CI=true`), where that is a failure.
 
@@ -123,6 +126,83 @@ async fn board_field(c: &Client, key: &str) -> String {
     .to_string()
 }
 
+/// A 6 mm cube as a 3MF (one object, no materials), written with the threemf crate.
+fn cube_3mf(path: &Path) {
+    use threemf::model::{
+        Build, Item, Model, Object, Resources, Triangle, Triangles, Unit, Vertex, Vertices,
+    };
+    let s = 6.0;
+    let vertex: Vec<Vertex> = (0..8)
+        .map(|i| Vertex {
+            x: if i & 1 != 0 { s } else { 0.0 },
+            y: if i & 2 != 0 { s } else { 0.0 },
+            z: if i & 4 != 0 { s } else { 0.0 },
+        })
+        .collect();
+    // Two triangles a face, wound outwards.
+    let faces = [
+        [0, 2, 3, 1], // bottom (-z)
+        [4, 5, 7, 6], // top (+z)
+        [0, 1, 5, 4], // -y
+        [2, 6, 7, 3], // +y
+        [0, 4, 6, 2], // -x
+        [1, 3, 7, 5], // +x
+    ];
+    let triangle = faces
+        .iter()
+        .flat_map(|f| {
+            [
+                Triangle {
+                    v1: f[0],
+                    v2: f[1],
+                    v3: f[2],
+                },
+                Triangle {
+                    v1: f[0],
+                    v2: f[2],
+                    v3: f[3],
+                },
+            ]
+        })
+        .collect();
+    let model = Model {
+        resources: Resources {
+            object: vec![Object {
+                id: 1,
+                mesh: Some(threemf::Mesh {
+                    vertices: Vertices { vertex },
+                    triangles: Triangles { triangle },
+                }),
+                ..Default::default()
+            }],
+            basematerials: None,
+        },
+        build: Build {
+            item: vec![Item {
+                objectid: 1,
+                transform: None,
+                partnumber: None,
+            }],
+        },
+        unit: Unit::Millimeter,
+        ..Default::default()
+    };
+    let f = std::fs::File::create(path).expect("cannot create the 3MF");
+    threemf::write(f, model).expect("cannot write the 3MF");
+}
+
+/// A board's data attribute (`activity`, `progress`, `seq`).
+async fn field_of(c: &Client, board: usize, key: &str) -> String {
+    js(
+        c,
+        &format!("document.querySelector('.board[data-board=\"{board}\"]')?.dataset.{key}"),
+    )
+    .await
+    .as_str()
+    .unwrap_or_default()
+    .to_string()
+}
+
 #[test]
 fn dashboard_in_a_real_browser() {
     if !Path::new(CHROMEDRIVER).exists() || !Path::new(CHROMIUM).exists() {
@@ -180,16 +260,36 @@ async fn run() {
     .as_object()
     .cloned()
     .expect("capabilities");
-    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
     let url = format!("http://127.0.0.1:{port}");
+    let c = session(&url, &caps).await;
+    let result = tokio::time::timeout(Duration::from_secs(500), pages(&c, &base)).await;
+    let before = match result {
+        Ok(p) => p,
+        Err(_) => {
+            let _ = c.close().await;
+            panic!("the browser test took over 500 s");
+        }
+    };
+    // A browser closed mid-print: the session ends (its status stream with it) while the
+    // second board prints; a new session finds the print going on, then finished.
+    c.close().await.expect("the browser closes");
+    let c = session(&url, &caps).await;
+    let result = tokio::time::timeout(Duration::from_secs(200), reopened(&c, &base, before)).await;
+    let _ = c.close().await;
+    result.expect("following the print in a new browser took over 200 s");
+}
+
+/// A WebDriver session (a fresh browser), retried while chromedriver starts.
+async fn session(url: &str, caps: &serde_json::Map<String, Value>) -> Client {
+    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
     let start = Instant::now();
-    let c = loop {
+    loop {
         match ClientBuilder::new(connector.clone())
             .capabilities(caps.clone())
-            .connect(&url)
+            .connect(url)
             .await
         {
-            Ok(c) => break c,
+            Ok(c) => return c,
             Err(e) => {
                 assert!(
                     start.elapsed() < Duration::from_secs(30),
@@ -198,13 +298,34 @@ async fn run() {
                 tokio::time::sleep(Duration::from_millis(200)).await;
             }
         }
-    };
-    let result = tokio::time::timeout(Duration::from_secs(400), pages(&c, &base)).await;
-    let _ = c.close().await;
-    result.expect("the browser test took over 400 s");
+    }
 }
 
-async fn pages(c: &Client, base: &str) {
+/// In a new browser: board 1 still printing (from at least `before`) or finished, its
+/// status live; then to 100 %.
+async fn reopened(c: &Client, base: &str, before: f64) {
+    c.goto(base).await.expect("open the dashboard again");
+    click(c, "#nav-print").await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"1\"]')?.dataset.activity",
+        20,
+        "board 1 in the new browser",
+    )
+    .await;
+    let activity = field_of(c, 1, "activity").await;
+    let p: f64 = field_of(c, 1, "progress").await.parse().unwrap_or(0.0);
+    eprintln!("browser closed at {before:.3}; the new one finds board 1 {activity} at {p:.3}");
+    assert!(
+        (activity == "printing" && p >= before) || activity.starts_with("finished"),
+        "{activity} at {p} (was {before})"
+    );
+    shot(c, "reopened.png").await;
+    wait_for(c, "document.querySelector('.board[data-board=\"1\"]').dataset.activity.startsWith('finished') && document.querySelector('.board[data-board=\"1\"] .live').textContent.startsWith('100.0 %')", 180, "the print finished, seen from the new browser").await;
+}
+
+/// The pages, in one browser; returns the progress of board 1's print, left running.
+async fn pages(c: &Client, base: &str) -> f64 {
     c.goto(base).await.expect("open the dashboard");
     wait_for(
         c,
@@ -274,6 +395,44 @@ async fn pages(c: &Client, base: &str) {
     wait_for(c, "document.querySelectorAll('.field.has-error').length === 0 && document.querySelectorAll('#config-derived tr').length > 3", 20, "the error cleared and derived figures shown").await;
     click(c, "#config-details summary").await;
 
+    // A small 3MF dropped on the page (a drop event carrying the file, as a drag from the
+    // desktop does), sliced: figures, the executor's time, and the preview.
+    let cube = tmp.path().join("cube.3mf");
+    cube_3mf(&cube);
+    let b64 = {
+        use base64::Engine;
+        base64::engine::general_purpose::STANDARD.encode(std::fs::read(&cube).expect("3MF"))
+    };
+    js(c, &format!("(() => {{ const b = Uint8Array.from(atob('{b64}'), (ch) => ch.charCodeAt(0)); const dt = new DataTransfer(); dt.items.add(new File([b], 'cube.3mf')); document.getElementById('drop').dispatchEvent(new DragEvent('drop', {{ dataTransfer: dt, bubbles: true, cancelable: true }})); return true; }})()")).await;
+    wait_for(
+        c,
+        "document.getElementById('design-list')?.textContent.includes('cube.3mf')",
+        10,
+        "the dropped file listed",
+    )
+    .await;
+    click(c, "#slice").await;
+    wait_for(c, "document.getElementById('job-name').textContent.includes('cube.3mf') && document.querySelector('.fig-print-segments')?.textContent", 120, "the 3MF sliced").await;
+    let est = js(
+        c,
+        "document.querySelector('.fig-estimated-print-time').textContent",
+    )
+    .await;
+    assert!(
+        est.as_str()
+            .unwrap_or_default()
+            .contains("a run of the executor"),
+        "{est}"
+    );
+    let drawn = js(c, "(() => { const c = document.getElementById('preview'); const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let a = 0; for (let i = 0; i < d.length; i += 4) { if (d[i] === 122 && d[i+1] === 72 && d[i+2] === 36) a++; } return a; })()").await;
+    assert!(
+        drawn.as_u64().unwrap_or(0) > 200,
+        "preview pixels of the 3MF: {drawn}"
+    );
+    eprintln!("3MF dropped and sliced: {est}");
+    js(c, "(window.scrollTo(0, 0), true)").await;
+    shot(c, "design-3mf.png").await;
+
     // A bundled design through the file picker, sliced 12 mm wide: the preview is drawn.
     choose_file(c, &designs.join("chessboard.png")).await;
     click(c, "#options-details summary").await;
@@ -286,7 +445,7 @@ async fn pages(c: &Client, base: &str) {
     click(c, "#slice").await;
     let segs = wait_for(
         c,
-        "document.querySelector('.fig-print-segments')?.textContent",
+        "document.getElementById('job-name').textContent.includes('chessboard.png') && document.querySelector('.fig-print-segments')?.textContent",
         60,
         "the job's figures",
     )
@@ -386,6 +545,12 @@ async fn pages(c: &Client, base: &str) {
     .await;
     assert!(
         live.as_str().unwrap_or_default().starts_with("100.0 %"),
+        "{live}"
+    );
+    assert!(
+        live.as_str()
+            .unwrap_or_default()
+            .contains("reference plant"),
         "{live}"
     );
     if !shot_taken {
@@ -511,4 +676,54 @@ async fn pages(c: &Client, base: &str) {
     shot(c, "calibrate.png").await;
     click(c, "#cal-apply").await;
     wait_for(c, "document.querySelector('.field[data-path=\"inlet[0].rheology\"] input')?.value.includes('power_law')", 20, "the fragment in the config's inlet 0").await;
+
+    // Flow: two pastes' flow against pressure (mass flows, with the density), fitted in
+    // the channel of the Design page's config; the two [[inlet]] tables fill inlets 0, 1.
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/calibration");
+    js(c, "(document.getElementById('cal-what').value = 'flow', document.getElementById('cal-what').dispatchEvent(new Event('change')), true)").await;
+    c.find(Locator::Id("cal-density"))
+        .await
+        .expect("density")
+        .send_keys("1.05")
+        .await
+        .expect("type");
+    c.find(Locator::Id("cal-file"))
+        .await
+        .expect("CSV picker")
+        .send_keys(&data.join("flow-two-pastes.csv").display().to_string())
+        .await
+        .expect("choosing the CSV");
+    click(c, "#cal-run").await;
+    wait_for(c, "document.getElementById('cal-report').textContent.includes('custard') && document.getElementById('cal-fragment').textContent.includes('[[inlet]]')", 60, "the flow fits").await;
+    shot(c, "calibrate-flow.png").await;
+    click(c, "#cal-apply").await;
+    wait_for(c, "document.querySelector('.field[data-path=\"inlet[1].material\"] input')?.value.includes('custard') && document.querySelector('.field[data-path=\"inlet[0].material\"] input')?.value.includes('puree')", 20, "the flow fragment in inlets 0 and 1").await;
+
+    // Lag: a valve's start-up curve gives its dead time and rise, applied to inlet 0.
+    js(c, "(document.getElementById('cal-what').value = 'lag', document.getElementById('cal-what').dispatchEvent(new Event('change')), true)").await;
+    c.find(Locator::Id("cal-file"))
+        .await
+        .expect("CSV picker")
+        .send_keys(&data.join("lag-valve.csv").display().to_string())
+        .await
+        .expect("choosing the CSV");
+    click(c, "#cal-run").await;
+    let frag = wait_for(c, "document.getElementById('cal-fragment').textContent.includes('valve_open_delay_ms') && document.getElementById('cal-fragment').textContent", 60, "the lag fit").await;
+    shot(c, "calibrate-lag.png").await;
+    let delay = frag
+        .as_str()
+        .unwrap_or_default()
+        .lines()
+        .find_map(|l| l.strip_prefix("valve_open_delay_ms = "))
+        .unwrap_or_default()
+        .trim()
+        .to_string();
+    click(c, "#cal-apply").await;
+    wait_for(c, &format!("document.querySelector('.field[data-path=\"inlet[0].valve_open_delay_ms\"] input')?.value === '{delay}'"), 20, "the lag fragment in inlet 0").await;
+
+    // Board 1 prints the chessboard; the browser is closed mid-print by the caller.
+    click(c, "#nav-print").await;
+    click(c, ".board[data-board=\"1\"] button[data-action=\"send\"]").await;
+    wait_for(c, "document.querySelector('.board[data-board=\"1\"]').dataset.activity === 'printing' && Number(document.querySelector('.board[data-board=\"1\"]').dataset.progress) > 0.05", 60, "board 1 printing").await;
+    field_of(c, 1, "progress").await.parse().unwrap_or(0.0)
 }

@@ -16,6 +16,7 @@ use crate::link::{
 use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
 use dollop::{Axis, RunState};
 use serde::Serialize;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -33,6 +34,50 @@ impl Link {
         if let Link::Sim(s) = self {
             s.catch_up();
         }
+    }
+}
+
+/// A board's link that an Abort can cut short while an upload is under way: armed during
+/// uploads only, it fails the next send or receive once the board's abort flag is up, so
+/// the upload ends at once and the worker takes the abort next (status polls and other
+/// orders never see the flag).
+pub struct Cancellable {
+    /// The link.
+    pub link: Link,
+    cancel: Arc<AtomicBool>,
+    armed: bool,
+}
+
+impl Cancellable {
+    fn check(&self) -> Result<(), LinkError> {
+        if self.armed && self.cancel.load(Ordering::SeqCst) {
+            return Err(LinkError::Port(CANCELLED.into()));
+        }
+        Ok(())
+    }
+}
+
+/// What a cancelled upload says.
+const CANCELLED: &str = "upload cancelled by Abort";
+
+impl Transport for Cancellable {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.check()?;
+        self.link.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+        self.check()?;
+        self.link.recv(buf, timeout)
+    }
+    fn now(&self) -> Duration {
+        self.link.now()
+    }
+    fn sleep(&mut self, d: Duration) {
+        self.link.sleep(d)
+    }
+    fn reconnect(&mut self) -> Result<(), LinkError> {
+        self.check()?;
+        self.link.reconnect()
     }
 }
 
@@ -109,8 +154,16 @@ pub struct View {
     pub position: [f64; 3],
     /// Head speed, mm/s.
     pub speed: f64,
-    /// Flow, mm³/s.
+    /// Flow, mm³/s: the reference plant's on the simulated board, the board's own
+    /// model's on a real one (which has no flow sensor).
     pub flow: f64,
+    /// What the board's executor believes the flow is, mm³/s.
+    pub flow_model: f64,
+    /// Where `flow` comes from: "plant" (the simulated board's reference plant) or
+    /// "model" (the board's executor).
+    pub flow_source: String,
+    /// Pressure in each inlet's line, kPa (the simulated board's plant; empty otherwise).
+    pub line_kpa: Vec<f64>,
     /// The job being printed (or last printed).
     pub job: Option<Queued>,
     /// Commands done, of `commands`.
@@ -148,12 +201,17 @@ pub enum Order {
     /// Stop now (and clear a halt).
     Abort,
     /// Home all axes.
-    Home,
+    Home(Fallback),
     /// Move one axis, mm.
-    Jog(Axis, f64),
+    Jog(Axis, f64, Fallback),
     /// Open a valve for this many seconds.
-    Valve(u8, f64),
+    Valve(u8, f64, Fallback),
 }
+
+/// The config a manual order (home, jog, valve test) loads on a board that has none and
+/// no job to take one from: the one chosen on the Design page, or the server's
+/// `--config`. None: such an order is refused with what to do.
+pub type Fallback = Option<Box<dollop::config::Config>>;
 
 /// A board: its worker's queue, what it shows, and who commands it.
 pub struct Board {
@@ -164,9 +222,18 @@ pub struct Board {
     pub view: tokio::sync::watch::Receiver<View>,
     /// The tab that commands it (set by its last accepted order).
     pub controller: Mutex<Option<String>>,
+    /// Raised by `abort` ahead of its order: an upload under way stops at once.
+    cancel: Arc<AtomicBool>,
 }
 
 impl Board {
+    /// Aborts: cuts short an upload under way to this board (the worker would otherwise
+    /// take the order only after it), then stops the board.
+    pub async fn abort(&self) -> Result<String, String> {
+        self.cancel.store(true, Ordering::SeqCst);
+        self.order(Order::Abort).await
+    }
+
     /// Hands an order to the worker and waits for its answer (in plain words).
     pub async fn order(&self, o: Order) -> Result<String, String> {
         let (tx, rx) = tokio::sync::oneshot::channel();
@@ -217,15 +284,17 @@ fn spawn(id: usize, name: String, port: String, path: Option<String>, speed: f64
         ..Default::default()
     };
     let (vtx, vrx) = tokio::sync::watch::channel(view.clone());
+    let cancel = Arc::new(AtomicBool::new(false));
     let board = Arc::new(Board {
         id,
         orders: Mutex::new(tx),
         view: vrx,
         controller: Mutex::new(None),
+        cancel: cancel.clone(),
     });
     let spawned = std::thread::Builder::new()
         .name(format!("board-{id}"))
-        .spawn(move || Worker::new(path, speed, view, vtx).run(rx));
+        .spawn(move || Worker::new(path, speed, view, vtx, cancel).run(rx));
     if let Err(e) = spawned {
         eprintln!("dollop serve: cannot start the worker of board {id}: {e}");
     }
@@ -247,13 +316,17 @@ struct Current {
 struct Worker {
     path: Option<String>,
     speed: f64,
-    client: Option<Client<Link>>,
+    client: Option<Client<Cancellable>>,
+    cancel: Arc<AtomicBool>,
     view: View,
     vtx: tokio::sync::watch::Sender<View>,
     queue: Vec<Arc<JobEntry>>,
     current: Option<Current>,
     valve_close: Option<(Instant, u8)>,
     next_connect: Instant,
+    /// The simulated board's plant is built from this instead of the loaded config (a
+    /// machine that differs from its config; tests).
+    plant_config: Option<dollop::config::Config>,
 }
 
 fn mode_words(s: &Status) -> Option<String> {
@@ -277,17 +350,20 @@ impl Worker {
         speed: f64,
         view: View,
         vtx: tokio::sync::watch::Sender<View>,
+        cancel: Arc<AtomicBool>,
     ) -> Self {
         Worker {
             path,
             speed,
             client: None,
+            cancel,
             view,
             vtx,
             queue: Vec::new(),
             current: None,
             valve_close: None,
             next_connect: Instant::now(),
+            plant_config: None,
         }
     }
 
@@ -313,7 +389,13 @@ impl Worker {
             None => Ok((Link::Sim(Box::new(SimLink::new(self.speed))), mem_options())),
             Some(p) => SerialLink::open(Some(p)).map(|l| (Link::Serial(l), Options::default())),
         };
+        let cancel = self.cancel.clone();
         let r = opened.and_then(|(link, opts)| {
+            let link = Cancellable {
+                link,
+                cancel,
+                armed: false,
+            };
             let mut c = Client::open(link, opts);
             c.connect().map(|_| c)
         });
@@ -370,7 +452,7 @@ impl Worker {
         let Some(c) = self.client.as_mut() else {
             return;
         };
-        c.transport_mut().catch_up();
+        c.transport_mut().link.catch_up();
         if let Some((at, inlet)) = self.valve_close {
             if Instant::now() >= at {
                 self.valve_close = None;
@@ -394,7 +476,25 @@ impl Worker {
         v.valves = k.valves;
         v.position = k.position_um.map(|u| u as f64 / 1000.0);
         v.speed = k.speed_mm_s as f64;
-        v.flow = k.q_mm3_s as f64;
+        v.flow_model = k.q_mm3_s as f64;
+        let plant = match self.client.as_ref().map(|c| c.transport()) {
+            Some(Cancellable {
+                link: Link::Sim(s), ..
+            }) => s.plant_now(),
+            _ => None,
+        };
+        match plant {
+            Some(p) => {
+                v.flow = p.q_mm3_s;
+                v.line_kpa = p.line_kpa;
+                v.flow_source = "plant".into();
+            }
+            None => {
+                v.flow = v.flow_model;
+                v.line_kpa.clear();
+                v.flow_source = "model".into();
+            }
+        }
         v.fault = mode_words(s);
         if let JobSlot::Ready { commands, .. } = s.job {
             v.commands = commands;
@@ -437,7 +537,7 @@ impl Worker {
         }
     }
 
-    fn client(&mut self) -> Result<&mut Client<Link>, String> {
+    fn client(&mut self) -> Result<&mut Client<Cancellable>, String> {
         self.client
             .as_mut()
             .ok_or_else(|| "the board is not connected; check its cable and power".to_string())
@@ -476,6 +576,7 @@ impl Worker {
                 Ok("resumed".into())
             }
             Order::Abort => {
+                self.cancel.store(false, Ordering::SeqCst);
                 let c = self.client()?;
                 let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
                 c.command(&Request::Abort).map_err(|e| e.to_string())?;
@@ -493,18 +594,18 @@ impl Worker {
                 }
                 Ok("aborted: valves closed, drivers off".into())
             }
-            Order::Home => {
-                self.ensure_config()?;
+            Order::Home(fallback) => {
+                self.ensure_config(fallback)?;
                 self.client()?
                     .command(&Request::Home)
                     .map_err(|e| e.to_string())?;
                 Ok("homing".into())
             }
-            Order::Jog(axis, mm) => {
+            Order::Jog(axis, mm, fallback) => {
                 if !mm.is_finite() || mm.abs() > 2000.0 {
                     return Err(format!("jog distance {mm} mm is not a plausible move"));
                 }
-                self.ensure_config()?;
+                self.ensure_config(fallback)?;
                 // Sent once: a jog repeated after a lost answer would move twice.
                 match self.client()?.call_once(&Request::Jog {
                     axis,
@@ -516,11 +617,11 @@ impl Worker {
                     Err(e) => Err(e.to_string()),
                 }
             }
-            Order::Valve(inlet, secs) => {
+            Order::Valve(inlet, secs, fallback) => {
                 if !(secs.is_finite() && secs > 0.0 && secs <= 10.0) {
                     return Err("a valve test lasts between 0 and 10 s".into());
                 }
-                self.ensure_config()?;
+                self.ensure_config(fallback)?;
                 self.client()?
                     .command(&Request::Valve { inlet, open: true })
                     .map_err(|e| e.to_string())?;
@@ -530,14 +631,15 @@ impl Worker {
         }
     }
 
-    /// Loads a config if the board has none (jog, home and valves need one): the queued
-    /// job's, or the current one's.
-    fn ensure_config(&mut self) -> Result<(), String> {
+    /// Loads a config if the board has none (jog, home and valves need one): the current
+    /// job's, the first queued one's, or else `fallback` (the Design page's or `--config`).
+    fn ensure_config(&mut self, fallback: Fallback) -> Result<(), String> {
         let cfg = self
             .current
             .as_ref()
             .map(|c| c.entry.config.clone())
-            .or_else(|| self.queue.first().map(|e| e.config.clone()));
+            .or_else(|| self.queue.first().map(|e| e.config.clone()))
+            .or_else(|| fallback.map(|b| *b));
         let c = self.client()?;
         if c.info().and_then(|i| i.config).is_some() {
             return Ok(());
@@ -548,10 +650,21 @@ impl Worker {
             }
         }
         let Some(cfg) = cfg else {
-            return Err("the board has no machine config yet: send it a job first (its config is loaded with it)".into());
+            return Err("the board has no machine config yet: choose one on the Design page (or start dollop serve with --config), or send it a job".into());
         };
-        c.command(&Request::LoadConfig(cfg))
-            .map_err(|e| format!("loading the config: {e}"))
+        c.command(&Request::LoadConfig(cfg.clone()))
+            .map_err(|e| format!("loading the config: {e}"))?;
+        self.couple_plant(&cfg, 0)
+    }
+
+    /// After a config was loaded on the simulated board: the reference plant of that
+    /// machine (or of `plant_config`) takes the board's valve outputs from now on.
+    fn couple_plant(&mut self, cfg: &dollop::config::Config, material: u8) -> Result<(), String> {
+        let plant_cfg = self.plant_config.clone().unwrap_or_else(|| cfg.clone());
+        if let Some(Link::Sim(s)) = self.client.as_mut().map(|c| &mut c.transport_mut().link) {
+            s.set_plant(&plant_cfg, material)?;
+        }
+        Ok(())
     }
 
     /// Uploads the first queued job, homes if needed, and starts it.
@@ -568,6 +681,14 @@ impl Worker {
             Ok(m) => {
                 self.queue.retain(|e| e.id != entry.id);
                 Ok(m)
+            }
+            Err(LinkError::Port(m)) if m == CANCELLED => {
+                self.queue.retain(|e| e.id != entry.id);
+                self.view.activity = "idle".into();
+                Err(format!(
+                    "{}: {m}; it left the queue (send it again to print it)",
+                    entry.figures.name
+                ))
             }
             Err(e) => {
                 if e.is_transient() || matches!(e, LinkError::Io(_) | LinkError::Stalled { .. }) {
@@ -591,7 +712,12 @@ impl Worker {
         let status = c.status()?;
         if status.config != Some(hash) {
             c.command(&Request::LoadConfig(entry.config.clone()))?;
+            self.couple_plant(&entry.config, entry.sliced.header.initial_material)
+                .map_err(LinkError::Protocol)?;
         }
+        let Some(c) = self.client.as_mut() else {
+            return Err(LinkError::Disconnected);
+        };
         c.command(&Request::Settings(dollop::wire::Settings::default()))?;
         self.view.activity = "uploading".into();
         self.view.job = Some(Queued {
@@ -603,11 +729,15 @@ impl Worker {
         let total = job.body.len() as u64;
         let vtx = self.vtx.clone();
         let mut shown = self.view.clone();
-        let (commands, _) = c.upload(&job, &mut |p| {
+        // An Abort raised before the upload began stops it too.
+        c.transport_mut().armed = true;
+        let uploaded = c.upload(&job, &mut |p| {
             shown.upload = Some((p.acked, total));
             shown.seq += 1;
             let _ = vtx.send(shown.clone());
-        })?;
+        });
+        c.transport_mut().armed = false;
+        let (commands, _) = uploaded?;
         self.view.seq = shown.seq;
         self.view.upload = None;
         self.view.commands = commands;
@@ -701,7 +831,7 @@ mod tests {
 
     fn worker(speed: f64) -> Worker {
         let (vtx, _vrx) = tokio::sync::watch::channel(View::default());
-        let mut w = Worker::new(None, speed, View::default(), vtx);
+        let mut w = Worker::new(None, speed, View::default(), vtx, Arc::default());
         w.connect();
         assert!(w.view.connected, "{:?}", w.view.message);
         w
@@ -710,7 +840,7 @@ mod tests {
     #[test]
     fn a_board_gone_mid_upload_keeps_the_job_queued() {
         let mut w = worker(50.0);
-        if let Some(Link::Sim(s)) = w.client.as_mut().map(|c| c.transport_mut()) {
+        if let Some(Link::Sim(s)) = w.client.as_mut().map(|c| &mut c.transport_mut().link) {
             let m = s.mem();
             m.dead_after = Some(m.stats.host_frames + 12);
         }
@@ -734,12 +864,14 @@ mod tests {
         let mut w = worker(200.0);
         let job = chessboard();
         assert_eq!(
-            w.handle(Order::Jog(Axis::X, f64::NAN)).err().as_deref(),
+            w.handle(Order::Jog(Axis::X, f64::NAN, None))
+                .err()
+                .as_deref(),
             Some("jog distance NaN mm is not a plausible move")
         );
-        assert!(w.handle(Order::Valve(0, 60.0)).is_err());
+        assert!(w.handle(Order::Valve(0, 60.0, None)).is_err());
         assert!(w
-            .handle(Order::Home)
+            .handle(Order::Home(None))
             .err()
             .is_some_and(|e| e.contains("no machine config")));
         w.handle(Order::Send(job)).expect("starts");
@@ -760,5 +892,178 @@ mod tests {
             w.view.activity
         );
         assert_eq!(w.view.eta_s, Some(0.0));
+    }
+
+    /// Prints the chessboard on a simulated board whose plant is built from `plant` (None:
+    /// the loaded config) and returns the flow shown and the executor's model flow, each
+    /// integrated over board time from the values at each poll, mm³.
+    fn printed_volumes(plant: Option<dollop::config::Config>) -> (f64, f64) {
+        let mut w = worker(200.0);
+        w.plant_config = plant;
+        w.handle(Order::Send(chessboard())).expect("starts");
+        let (mut shown, mut model) = (0.0, 0.0);
+        let board_now = |w: &Worker| {
+            w.client
+                .as_ref()
+                .map(|c| c.transport().now())
+                .expect("connected")
+        };
+        let mut last = board_now(&w);
+        let start = Instant::now();
+        while w.view.progress < 1.0 {
+            assert!(
+                start.elapsed() < Duration::from_secs(120),
+                "stuck at {}",
+                w.view.progress
+            );
+            w.tick();
+            assert_eq!(w.view.flow_source, "plant");
+            assert_eq!(w.view.line_kpa.len(), 2);
+            let now = board_now(&w);
+            let dt = (now - last).as_secs_f64();
+            last = now;
+            shown += w.view.flow * dt;
+            model += w.view.flow_model * dt;
+        }
+        (shown, model)
+    }
+
+    #[test]
+    fn the_simulated_board_shows_the_plants_flow() {
+        // The same machine as configured: the plant follows the executor's valves, so the
+        // volumes agree closely (but are not the model's numbers).
+        let (same, model) = printed_volumes(None);
+        eprintln!("plant as configured: shown {same:.1} mm³, model {model:.1} mm³");
+        assert!(model > 1.0, "nothing printed: {model}");
+        assert!((same / model - 1.0).abs() < 0.15, "{same} vs {model}");
+        assert_ne!(same, model);
+        // Pastes twice as viscous as the config says, fed the pressures the config's
+        // "auto" works out: the plant (a real printer) gives about half the flow.
+        let text = design::BUNDLED[0].1;
+        let cfg = design::check(text).expect("config").config;
+        let m = cfg
+            .validate::<f64, { dollop::config::MAX_CONFIG_INLETS }>()
+            .expect("validates");
+        let mut thick = text
+            .replace("viscosity_pa_s = 1.41", "viscosity_pa_s = 2.82")
+            .replace("viscosity_pa_s = 3.17", "viscosity_pa_s = 6.34");
+        for inlet in m.inlets.iter() {
+            thick = thick.replacen(
+                "pressure_kpa = \"auto\"",
+                &format!("pressure_kpa = {}", inlet.supply_pa / 1e3),
+                1,
+            );
+        }
+        assert!(!thick.contains("pressure_kpa = \"auto\""), "{thick}");
+        let thick = design::check(&thick).expect("thick config").config;
+        let (shown, model2) = printed_volumes(Some(thick));
+        eprintln!("plant twice as viscous: shown {shown:.1} mm³, model {model2:.1} mm³");
+        // (The integrals sample the flow at the worker's polls, irregular in board time:
+        // compare each run's plant with its own model, over the same samples.)
+        assert!(shown < 0.7 * model2, "{shown} vs {model2}");
+        assert!(shown > 0.3 * model2, "{shown} vs {model2}");
+    }
+
+    /// Ticks the worker until `done` holds (board time runs at `speed` times the wall's).
+    fn tick_until(w: &mut Worker, what: &str, done: impl Fn(&View) -> bool) {
+        let start = Instant::now();
+        while !done(&w.view) {
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "waiting for {what}: {} {:?}",
+                w.view.activity,
+                w.view.message
+            );
+            w.tick();
+        }
+    }
+
+    #[test]
+    fn home_jog_and_valve_test_work_before_any_job_with_the_pages_config() {
+        let mut w = worker(20.0);
+        let cfg = || {
+            Some(Box::new(
+                design::check(design::BUNDLED[0].1).expect("config").config,
+            ))
+        };
+        // Jogging an unhomed machine is the board's to refuse, as with the CLI.
+        let jog = w.handle(Order::Jog(Axis::X, 5.0, cfg()));
+        assert!(jog.is_err(), "{jog:?}");
+        w.handle(Order::Home(cfg())).expect("homes");
+        w.tick();
+        tick_until(&mut w, "homing", |v| v.homed && v.mode == "Idle");
+        let x0 = w.view.position[0];
+        let jog = w.handle(Order::Jog(Axis::X, 5.0, None)).expect("jogs");
+        assert!(jog.contains("jogging"), "{jog}");
+        w.tick();
+        tick_until(&mut w, "the jog", |v| {
+            v.mode == "Idle" && (v.position[0] - x0 - 5.0).abs() < 0.01
+        });
+        w.handle(Order::Valve(1, 0.5, None)).expect("opens");
+        w.tick();
+        assert_eq!(w.view.valves, 2, "{}", w.view.mode);
+        // The plant's line fills and its flow follows; then the valve closes by itself.
+        tick_until(&mut w, "flow", |v| v.flow > 0.1 && v.line_kpa[1] > 1.0);
+        tick_until(&mut w, "the valve closing", |v| v.valves == 0);
+    }
+
+    #[test]
+    fn abort_cuts_an_upload_short_and_aborts_at_once() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        // A bigger job (the logo 40 mm wide), on a board at the wall clock's pace.
+        let checked = design::check(design::BUNDLED[0].1).expect("config");
+        let uploads = [design::Upload {
+            name: "logo.png".into(),
+            bytes: design::DESIGNS[0].1.to_vec(),
+        }];
+        let form = design::SliceForm {
+            width_mm: Some(40.0),
+            ..Default::default()
+        };
+        let sliced = design::slice(&uploads, &checked.config, &form).expect("slices");
+        let entry = Arc::new(JobEntry {
+            id: 9,
+            toolpath: design::toolpath(&sliced.commands, sliced.header.start_um, 0.8),
+            figures: design::figures(&sliced, &checked.config),
+            config: checked.config,
+            config_text: checked.text,
+            sliced,
+        });
+        let board = spawn(0, "sim".into(), "simulated".into(), None, 1.0);
+        rt.block_on(async {
+            let mut view = board.view.clone();
+            while !view.borrow().connected {
+                view.changed().await.expect("worker runs");
+            }
+            let b = board.clone();
+            let send = tokio::spawn(async move { b.order(Order::Send(entry)).await });
+            let total = loop {
+                view.changed().await.expect("worker runs");
+                if let Some((acked, total)) = view.borrow().upload {
+                    if acked > 0 {
+                        assert!(acked < total, "the upload ended before the abort");
+                        break total;
+                    }
+                }
+            };
+            let t = Instant::now();
+            let aborted = board.abort().await;
+            let took = t.elapsed();
+            let sent = send.await.expect("joins");
+            eprintln!("abort during an upload of {total} bytes: answered in {took:?}: {aborted:?}; the send: {sent:?}");
+            assert!(aborted.is_ok(), "{aborted:?}");
+            assert!(took < Duration::from_secs(1), "{took:?}");
+            let e = sent.expect_err("the upload was cancelled");
+            assert!(e.contains("upload cancelled by Abort"), "{e}");
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            let v = board.view.borrow().clone();
+            assert_eq!(v.upload, None);
+            assert!(v.queue.is_empty(), "{:?}", v.queue);
+            assert_ne!(v.mode, "Job");
+            assert!(v.connected, "{:?}", v.message);
+        });
     }
 }

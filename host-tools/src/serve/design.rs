@@ -145,91 +145,125 @@ fn field_at(text: &str, at: usize) -> Option<String> {
     None
 }
 
+fn parse_doc(text: &str) -> ApiResult<toml_edit::DocumentMut> {
+    // The same TOML as `parse_table` takes (checked there first, for its error's span).
+    parse_table(text)?;
+    text.parse::<toml_edit::DocumentMut>().map_err(|e| {
+        ApiError::bad(format!(
+            "the config is not valid TOML: {}",
+            one_line(e.message())
+        ))
+        .with_span(text, e.span())
+    })
+}
+
+/// A value as the editor shows it: its TOML without the spacing and comments around it.
+fn raw_of(item: &toml_edit::Item) -> Option<String> {
+    let mut v = match item {
+        toml_edit::Item::Value(v) => v.clone(),
+        // A sub-table written as `[inlet.rheology]`: shown inline, as one field.
+        toml_edit::Item::Table(t) => toml_edit::Value::InlineTable(t.clone().into_inline_table()),
+        _ => return None,
+    };
+    v.decor_mut().clear();
+    Some(v.to_string())
+}
+
 /// The fields of a config's TOML, in file order (sections, then `[[inlet]]` tables).
 pub fn fields(text: &str) -> ApiResult<Vec<Field>> {
-    let table = parse_table(text)?;
+    let doc = parse_doc(text)?;
     let mut out = Vec::new();
-    for (section, v) in &table {
-        match v {
-            toml::Value::Table(t) => {
-                for (k, v) in t {
-                    out.push(Field {
-                        path: format!("{section}.{k}"),
-                        raw: v.to_string(),
-                    });
+    for (section, item) in doc.iter() {
+        match item {
+            toml_edit::Item::Table(t) => {
+                for (k, v) in t.iter() {
+                    if let Some(raw) = raw_of(v) {
+                        out.push(Field {
+                            path: format!("{section}.{k}"),
+                            raw,
+                        });
+                    }
                 }
             }
-            toml::Value::Array(a) if a.iter().all(|x| x.is_table()) && !a.is_empty() => {
+            toml_edit::Item::ArrayOfTables(a) => {
                 for (i, t) in a.iter().enumerate() {
-                    if let toml::Value::Table(t) = t {
-                        for (k, v) in t {
+                    for (k, v) in t.iter() {
+                        if let Some(raw) = raw_of(v) {
                             out.push(Field {
                                 path: format!("{section}[{i}].{k}"),
-                                raw: v.to_string(),
+                                raw,
                             });
                         }
                     }
                 }
             }
-            other => out.push(Field {
-                path: section.clone(),
-                raw: other.to_string(),
-            }),
+            other => {
+                if let Some(raw) = raw_of(other) {
+                    out.push(Field {
+                        path: section.to_string(),
+                        raw,
+                    });
+                }
+            }
         }
     }
     Ok(out)
 }
 
-/// Sets `path` (a `Field::path`) in `table` to `value`.
-fn set(table: &mut toml::Table, path: &str, value: toml::Value) -> ApiResult<()> {
+/// Sets `path` (a `Field::path`) in `doc` to `value`, keeping the old value's spacing and
+/// comment on its line.
+fn set(doc: &mut toml_edit::DocumentMut, path: &str, mut value: toml_edit::Value) -> ApiResult<()> {
     let unknown = || ApiError::bad(format!("{path}: no such field in this config")).at(path);
     let (head, key) = match path.split_once('.') {
         Some((h, k)) => (h, Some(k)),
         None => (path, None),
     };
-    let Some(key) = key else {
-        table.insert(head.to_string(), value);
-        return Ok(());
-    };
-    let slot = match head.split_once('[') {
-        Some((name, idx)) => {
+    let table: &mut toml_edit::Table = match (key, head.split_once('[')) {
+        (None, _) => doc.as_table_mut(),
+        (Some(_), Some((name, idx))) => {
             let i: usize = idx.trim_end_matches(']').parse().map_err(|_| unknown())?;
-            table
-                .get_mut(name)
-                .and_then(|v| v.as_array_mut())
+            doc.get_mut(name)
+                .and_then(|v| v.as_array_of_tables_mut())
                 .and_then(|a| a.get_mut(i))
-                .and_then(|v| v.as_table_mut())
+                .ok_or_else(unknown)?
         }
-        None => table.get_mut(head).and_then(|v| v.as_table_mut()),
+        (Some(_), None) => doc
+            .get_mut(head)
+            .and_then(|v| v.as_table_mut())
+            .ok_or_else(unknown)?,
+    };
+    let key = key.unwrap_or(head);
+    match table.get_mut(key) {
+        Some(toml_edit::Item::Value(old)) => {
+            *value.decor_mut() = old.decor().clone();
+            *old = value;
+        }
+        Some(item) => *item = toml_edit::Item::Value(value),
+        None => {
+            table.insert(key, toml_edit::Item::Value(value));
+        }
     }
-    .ok_or_else(unknown)?;
-    slot.insert(key.to_string(), value);
     Ok(())
 }
 
-/// Applies the editor's edits to `text`; each value is TOML (`0.8`, `"auto"`).
+/// Applies the editor's edits to `text`; each value is TOML (`0.8`, `"auto"`). The rest
+/// of the file stays as written: its order, comments and spacing.
 pub fn apply(text: &str, edits: &[Field]) -> ApiResult<String> {
     if edits.is_empty() {
         return Ok(text.to_string());
     }
-    let mut table = parse_table(text)?;
+    let mut doc = parse_doc(text)?;
     for e in edits {
-        let wrapped = format!("v = {}", e.raw);
-        let value = wrapped
-            .parse::<toml::Table>()
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .ok_or_else(|| {
-                ApiError::bad(format!(
-                    "{}: {:?} is not a value (a number, \"text\" in quotes, [a, b] or {{ k = v }})",
-                    e.path, e.raw
-                ))
-                .at(&e.path)
-            })?;
-        set(&mut table, &e.path, value)?;
+        let value = e.raw.trim().parse::<toml_edit::Value>().map_err(|_| {
+            ApiError::bad(format!(
+                "{}: {:?} is not a value (a number, \"text\" in quotes, [a, b] or {{ k = v }})",
+                e.path, e.raw
+            ))
+            .at(&e.path)
+        })?;
+        set(&mut doc, &e.path, value)?;
     }
-    toml::to_string(&table)
-        .map_err(|e| ApiError::internal(format!("cannot write the config back: {e}")))
+    Ok(doc.to_string())
 }
 
 /// The field of a core validation error, as the editor names it.
@@ -331,6 +365,11 @@ pub struct SliceForm {
     pub min_run_mm: Option<f64>,
     /// --connect-mm
     pub connect_mm: Option<f64>,
+    /// --markers: fiducial markers around the part for `dollop inspect`.
+    pub markers: bool,
+    /// --calibration-pattern: the pattern for `dollop inspect --suggest` instead of a
+    /// design (with markers).
+    pub calibration_pattern: bool,
 }
 
 fn nonempty(s: &Option<String>) -> Option<String> {
@@ -383,10 +422,8 @@ impl SliceForm {
             max_segments: d.max_segments,
             max_triangles: d.max_triangles,
             max_3mf_mb: d.max_3mf_bytes >> 20,
-            // The dashboard has no control for these yet (the CLI's `slice --markers` and
-            // `--calibration-pattern`).
-            markers: false,
-            calibration_pattern: false,
+            markers: self.markers,
+            calibration_pattern: self.calibration_pattern,
         })
     }
 }
@@ -428,6 +465,9 @@ pub(super) fn safe_name(name: &str, fallback: &str) -> String {
 /// Slices uploaded designs for `config` with `form`'s options. Blocking: run it off the
 /// async threads.
 pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    if form.calibration_pattern {
+        return calibration_pattern(config, form);
+    }
     if uploads.is_empty() {
         return Err(ApiError::bad(
             "choose a design: an image, one STL per material, or a 3MF",
@@ -454,9 +494,32 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     // The slicer names the files in its messages: the user's names, not our folder's.
     let ours = format!("{}/", dir.path().display());
-    let mut sliced = slicer::slice_files(&paths, config, &opts)
-        .map_err(|e| ApiError::bad(e.to_string().replace(&ours, "")))?;
+    let strip = |e: slicer::SliceError| ApiError::bad(e.to_string().replace(&ours, ""));
+    let mut sliced = slicer::slice_files(&paths, config, &opts).map_err(strip)?;
+    if args.markers {
+        let machine = slicer::validate(Path::new("config"), config).map_err(strip)?;
+        sliced = slicer::with_markers(sliced, config, &machine).map_err(strip)?;
+    }
     sliced.name = sliced.name.replace(&ours, "");
+    Ok(sliced)
+}
+
+/// The calibration pattern of `dollop slice --calibration-pattern` for this config (every
+/// pair of its materials, switches at several distances), with markers.
+fn calibration_pattern(config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    let args = form.to_args()?;
+    let opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
+    let bad = |e: slicer::SliceError| ApiError::bad(e.to_string());
+    let machine = slicer::validate(Path::new("config"), config).map_err(bad)?;
+    let design = slicer::calibration::pattern(
+        machine.inlet_count(),
+        config.channel.line_pitch_mm as f64,
+        slicer::toolpath::transit_mm(&machine),
+    );
+    let path = slicer::calibration::path_options(opts.path);
+    let sliced = slicer::slice_design(&design, config, &machine, &path).map_err(bad)?;
+    let mut sliced = slicer::with_markers(sliced, config, &machine).map_err(bad)?;
+    sliced.name = "calibration pattern".into();
     Ok(sliced)
 }
 
@@ -605,8 +668,14 @@ pub struct Figures {
     pub travel_mm: f64,
     /// Job file size, bytes.
     pub job_bytes: usize,
-    /// Print time estimated from lengths and speeds (no acceleration, no switch waits), s.
+    /// Estimated print time, s: how long the executor takes over the job in virtual time
+    /// (ramps, corners, valve waits and switches included; no plant), or lengths over
+    /// speeds if that run could not be made.
     pub est_time_s: f64,
+    /// How `est_time_s` was found, in words for the page.
+    pub est_time_from: String,
+    /// Lengths over speeds (no acceleration, no waits), s: for comparison.
+    pub length_time_s: f64,
     /// Commands in the job.
     pub commands: usize,
 }
@@ -615,6 +684,16 @@ pub struct Figures {
 pub fn figures(s: &Sliced, config: &Config) -> Figures {
     let st = &s.stats;
     let print = st.print_mm + st.prime_mm;
+    let length_time_s = print / (config.motion.print_speed_mm_s as f64).max(1e-3)
+        + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3);
+    let (est_time_s, est_time_from) = match executor_time(s, config) {
+        Ok(t) => (
+            t,
+            "a run of the executor in virtual time (ramps and valve waits included; no plant)"
+                .to_string(),
+        ),
+        Err(e) => (length_time_s, format!("lengths over speeds ({e})")),
+    };
     Figures {
         name: s.name.clone(),
         segments: s.header.print_segments,
@@ -625,9 +704,31 @@ pub fn figures(s: &Sliced, config: &Config) -> Figures {
         print_mm: print,
         travel_mm: st.travel_mm,
         job_bytes: s.to_bytes().len(),
-        est_time_s: print / (config.motion.print_speed_mm_s as f64).max(1e-3)
-            + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3),
+        est_time_s,
+        est_time_from,
+        length_time_s,
         commands: s.commands.len(),
+    }
+}
+
+/// Virtual time the executor (in the board's f32) takes over the job: no plant, no
+/// outputs kept, so it costs the executor's ticks only.
+pub fn executor_time(s: &Sliced, config: &Config) -> Result<f64, String> {
+    let job = dollop_sim::Job {
+        start_um: s.header.start_um,
+        initial_material: s.header.initial_material,
+        commands: s.commands.clone(),
+    };
+    let opts = dollop_sim::RunOptions {
+        plant: false,
+        // A day of printing is past any job the dashboard slices.
+        max_time_s: 86_400.0,
+        ..Default::default()
+    };
+    let r = dollop_sim::run::<f32>(config, &job, &opts, |_| {}).map_err(|e| e.to_string())?;
+    match r.fault {
+        Some(f) => Err(format!("the executor stopped the job: {f}")),
+        None => Ok(r.time_s),
     }
 }
 
@@ -720,6 +821,30 @@ mod tests {
     }
 
     #[test]
+    fn an_edit_keeps_the_files_order_and_comments() {
+        let before = seed();
+        let after = apply(before, &edit("inlet[1].valve_open_delay_ms", "12.5")).expect("applies");
+        // Only that value changed: every other line is as written, comments included.
+        let changed: Vec<(&str, &str)> = before
+            .lines()
+            .zip(after.lines())
+            .filter(|(a, b)| a != b)
+            .collect();
+        assert_eq!(before.lines().count(), after.lines().count(), "{after}");
+        assert_eq!(changed.len(), 1, "{changed:?}");
+        assert_eq!(changed[0].1, "valve_open_delay_ms = 12.5");
+        assert!(after.starts_with("# "), "{after}");
+        // The editor lists the fields in file order: [channel] before [motion].
+        let f = fields(&after).expect("fields");
+        let pos = |p: &str| f.iter().position(|x| x.path == p).unwrap_or(usize::MAX);
+        assert!(pos("channel.nozzle_diameter_mm") < pos("motion.print_speed_mm_s"));
+        assert!(pos("inlet[0].material") < pos("inlet[0].rheology"));
+        // A value that is not TOML names its field.
+        let e = apply(before, &edit("motion.print_speed_mm_s", "fast")).expect_err("refused");
+        assert_eq!(e.field.as_deref(), Some("motion.print_speed_mm_s"));
+    }
+
+    #[test]
     fn edits_round_trip() {
         let text = apply(seed(), &edit("motion.print_speed_mm_s", "12.5")).expect("applies");
         let c = check(&text).expect("valid");
@@ -746,8 +871,60 @@ mod tests {
         assert_eq!(s.name, "cube-shell.stl + cube-ball.stl");
         let f = figures(&s, &c.config);
         assert!(f.segments > 10 && f.switches > 0, "{f:?}");
+        // The executor's time: the same job in the simulator's own run, and longer than
+        // lengths over speeds (ramps, valve waits).
+        assert!(
+            f.est_time_from.starts_with("a run of the executor"),
+            "{}",
+            f.est_time_from
+        );
+        let job = dollop_sim::Job {
+            start_um: s.header.start_um,
+            initial_material: s.header.initial_material,
+            commands: s.commands.clone(),
+        };
+        let opts = dollop_sim::RunOptions {
+            plant: false,
+            ..Default::default()
+        };
+        let r = dollop_sim::run::<f32>(&c.config, &job, &opts, |_| {}).expect("runs");
+        assert_eq!(f.est_time_s, r.time_s);
+        eprintln!(
+            "cube shell + ball: executor {:.1} s, lengths over speeds {:.1} s",
+            f.est_time_s, f.length_time_s
+        );
+        assert!(f.est_time_s > f.length_time_s, "{f:?}");
         let e = slice(&[], &c.config, &form).err().map(|e| e.error);
         assert!(e.is_some_and(|e| e.contains("choose a design")));
+    }
+
+    #[test]
+    fn markers_and_the_calibration_pattern_slice() {
+        let c = check(seed()).expect("config");
+        let uploads = [Upload {
+            name: "chessboard.png".into(),
+            bytes: DESIGNS[1].1.to_vec(),
+        }];
+        let mut form = SliceForm {
+            width_mm: Some(8.0),
+            ..Default::default()
+        };
+        let plain = slice(&uploads, &c.config, &form).expect("slices");
+        form.markers = true;
+        let marked = slice(&uploads, &c.config, &form).expect("slices with markers");
+        assert!(
+            marked.header.print_segments > plain.header.print_segments,
+            "{} vs {}",
+            marked.header.print_segments,
+            plain.header.print_segments
+        );
+        let form = SliceForm {
+            calibration_pattern: true,
+            ..Default::default()
+        };
+        let p = slice(&[], &c.config, &form).expect("the pattern slices without a design");
+        assert_eq!(p.name, "calibration pattern");
+        assert!(figures(&p, &c.config).switches >= 2);
     }
 
     #[test]

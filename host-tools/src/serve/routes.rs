@@ -4,7 +4,7 @@
 //! board status ten times a second). Every failure is an `ApiError` the page shows.
 
 use super::assets;
-use super::boards::{Order, View};
+use super::boards::{Fallback, Order, View};
 use super::design::{self, Field, SliceForm, Upload};
 use super::error::{ApiError, ApiResult};
 use super::simulate::{self, SimRun};
@@ -41,7 +41,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/sims/{id}", get(sim_get))
         .route("/api/sims/{id}/events", get(sim_events))
         .route("/api/sims/{id}/{file}", get(sim_file))
-        .route("/api/calibrate/rheology", post(calibrate_rheology))
+        .route("/api/calibrate/{what}", post(calibrate))
         .route("/api/boards/events", get(board_events))
         .route("/api/boards/{id}/{action}", post(board_action))
         .fallback(|| async { ApiError::missing("no such page") })
@@ -450,6 +450,9 @@ struct ActionReq {
     mm: Option<f64>,
     inlet: Option<u8>,
     seconds: Option<f64>,
+    /// The config chosen on the Design page (TOML), for home, jog and valve tests on a
+    /// board without one.
+    config: Option<String>,
 }
 
 async fn board_action(
@@ -478,6 +481,20 @@ async fn board_action(
         }
         *ctl = Some(r.tab.clone());
     }
+    // Home, jog and valve tests before any job: the Design page's config, else --config.
+    let fallback = || -> ApiResult<Fallback> {
+        match r.config.as_deref() {
+            Some(text) => design::check(text)
+                .map(|c| Some(Box::new(c.config)))
+                .map_err(|e| {
+                    ApiError::bad(format!(
+                        "the config chosen on the Design page does not check ({}); fix it there first",
+                        e.error
+                    ))
+                }),
+            None => Ok(st.cli_config.clone().map(Box::new)),
+        }
+    };
     let order = match action.as_str() {
         "claim" => {
             return Ok(Json(
@@ -492,8 +509,13 @@ async fn board_action(
         "unqueue" => Order::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
         "pause" => Order::Pause,
         "resume" => Order::Resume,
-        "abort" => Order::Abort,
-        "home" => Order::Home,
+        "abort" => {
+            return match b.abort().await {
+                Ok(m) => Ok(Json(json!({ "message": m }))),
+                Err(m) => Err(ApiError::conflict(m)),
+            }
+        }
+        "home" => Order::Home(fallback()?),
         "jog" => {
             let axis = match r.axis.as_deref() {
                 Some("x") | Some("X") => dollop::Axis::X,
@@ -504,12 +526,14 @@ async fn board_action(
             Order::Jog(
                 axis,
                 r.mm.ok_or_else(|| ApiError::bad("jog: give a distance in mm"))?,
+                fallback()?,
             )
         }
         "valve" => Order::Valve(
             r.inlet
                 .ok_or_else(|| ApiError::bad("valve test: choose an inlet"))?,
             r.seconds.unwrap_or(1.0),
+            fallback()?,
         ),
         other => return Err(ApiError::missing(format!("no board action {other:?}"))),
     };
@@ -519,9 +543,13 @@ async fn board_action(
     }
 }
 
-async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrate::Shown>> {
+async fn calibrate(
+    Path(what): Path<String>,
+    mut mp: Multipart,
+) -> ApiResult<Json<super::calibrate::Shown>> {
     let mut data = None;
-    let mut kind = String::new();
+    let (mut kind, mut inlet, mut config, mut density) =
+        (String::new(), String::new(), None, String::new());
     while let Some(field) = mp.next_field().await? {
         match field.name().unwrap_or("") {
             "data" => {
@@ -529,11 +557,42 @@ async fn calibrate_rheology(mut mp: Multipart) -> ApiResult<Json<super::calibrat
                 data = Some((name, field.bytes().await?.to_vec()));
             }
             "kind" => kind = field.text().await?,
+            "inlet" => inlet = field.text().await?,
+            "config" => config = Some(field.text().await?),
+            "density" => density = field.text().await?,
             _ => {}
         }
     }
     let (name, bytes) = data.ok_or_else(|| ApiError::bad("choose a measurement CSV"))?;
-    Ok(Json(
-        blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
-    ))
+    Ok(Json(match what.as_str() {
+        "rheology" => blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
+        "lag" => blocking(move || super::calibrate::lag(&name, &bytes, &inlet)).await?,
+        "flow" => {
+            let config = match config.as_deref().filter(|t| !t.trim().is_empty()) {
+                Some(t) => Some(
+                    design::check(t)
+                        .map_err(|e| {
+                            ApiError::bad(format!(
+                                "the Design page's config does not check ({}); fix it there first",
+                                e.error
+                            ))
+                        })?
+                        .config,
+                ),
+                None => None,
+            };
+            let density = match density.trim() {
+                "" => None,
+                d => Some(d.parse::<f64>().map_err(|_| {
+                    ApiError::bad(format!("density {d:?}: give a number in g/ml, e.g. 1.05"))
+                })?),
+            };
+            blocking(move || super::calibrate::flow(&name, &bytes, config, density)).await?
+        }
+        other => {
+            return Err(ApiError::missing(format!(
+                "no calibration {other:?}: rheology, flow or lag"
+            )))
+        }
+    }))
 }

@@ -53,6 +53,9 @@ pub struct AppState {
     tabs: Mutex<HashMap<String, usize>>,
     /// The job `--demo` sliced at start.
     pub demo_job: Option<u64>,
+    /// `--config`, checked: what home, jog and valve tests load on a board without a
+    /// config when the page names none.
+    pub cli_config: Option<Config>,
 }
 
 /// Locks, going on with the data if another thread panicked while holding it.
@@ -64,10 +67,13 @@ impl AppState {
     /// Builds the state: reads `--config`, starts the board workers, slices the demo.
     pub fn new(a: &Args) -> anyhow::Result<Self> {
         let mut configs = Vec::new();
+        let mut cli_config = None;
         if let Some(p) = &a.config {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read config {}", p.display()))?;
-            design::check(&text).map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.error))?;
+            let checked = design::check(&text)
+                .map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.error))?;
+            cli_config = Some(checked.config);
             configs.push(ConfigChoice {
                 name: p
                     .file_name()
@@ -91,6 +97,7 @@ impl AppState {
             boards,
             tabs: Mutex::new(HashMap::new()),
             demo_job: None,
+            cli_config,
         };
         if a.demo {
             let text = design::BUNDLED[0].1;

@@ -191,6 +191,8 @@ function sliceOptions() {
     if (v !== "") o[k] = v;
   }
   o.invert = $("opt-invert").checked;
+  o.markers = $("opt-markers").checked;
+  o.calibration_pattern = $("opt-calibration_pattern").checked;
   return o;
 }
 
@@ -220,7 +222,7 @@ function upload(path, form, bar) {
 
 $("slice").addEventListener("click", async () => {
   showError("slice-error", "");
-  if (!app.files.length) return showError("slice-error", "Choose a design first: an image, one STL per material, or a 3MF.");
+  if (!app.files.length && !$("opt-calibration_pattern").checked) return showError("slice-error", "Choose a design first: an image, one STL per material, or a 3MF (or tick Calibration pattern).");
   const text = await checkConfig();
   if (!text) return showError("slice-error", "Fix the config first (see the field marked in red).");
   const form = new FormData();
@@ -263,7 +265,7 @@ function setJob(job) {
     ["beads", f.beads],
     ["printed / travel", `${f.print_mm.toFixed(0)} mm / ${f.travel_mm.toFixed(0)} mm`],
     ["job file", `${f.job_bytes} bytes`],
-    ["estimated print time", fmtTime(f.est_time_s) + " (lengths over speeds; Simulate gives the exact time)"],
+    ["estimated print time", `${fmtTime(f.est_time_s)} (from ${f.est_time_from}; lengths over speeds alone: ${fmtTime(f.length_time_s)})`],
   ].map(([k, v]) => el("tr", {}, el("td", {}, k), el("td", { class: "fig-" + k.replace(/\W+/g, "-") }, String(v)))));
   const sel = $("layer-select");
   sel.replaceChildren(el("option", { value: "all" }, "all"));
@@ -530,6 +532,8 @@ let lastBoards = null;
 const boardViews = {}; // board id -> zoom state of its canvas
 
 async function boardAction(id, action, extra = {}, force = false) {
+  // Home, jog and valve tests on a board without a config load the Design page's.
+  if (["home", "jog", "valve"].includes(action) && app.config) extra = { ...extra, config: app.config.text };
   try {
     const r = await postJson(`/api/boards/${id}/${action}`, { tab: TAB, force, ...extra });
     toast(r.message);
@@ -627,7 +631,10 @@ function renderBoards(data) {
     q(".print-progress").value = b.progress;
     const valves = [0, 1, 2, 3].map((i) => ((b.valves >> i) & 1 ? "●" : "○")).join("");
     q(".live").textContent = `${(b.progress * 100).toFixed(1)} %  ETA ${fmtTime(b.eta_s)}  elapsed ${fmtTime(b.elapsed_s)}\n` +
-      `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  flow ${b.flow.toFixed(2)} mm³/s  ${b.homed ? "homed" : "not homed"}`;
+      `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  ${b.homed ? "homed" : "not homed"}\n` +
+      (b.flow_source === "plant"
+        ? `flow ${b.flow.toFixed(2)} mm³/s (reference plant; the board's model says ${b.flow_model.toFixed(2)})  lines ${b.line_kpa.map((p) => p.toFixed(1)).join(" / ")} kPa`
+        : `flow ${b.flow.toFixed(2)} mm³/s (the board's model)`);
     q(".live").style.whiteSpace = "pre";
     q(".upload-row").hidden = !b.upload;
     if (b.upload) {
@@ -651,36 +658,56 @@ function followBoards() {
 // ---------------------------------------------------------------- calibrate
 let calFragment = null;
 $("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
+function calWhatChanged() {
+  const what = $("cal-what").value;
+  for (const e of document.querySelectorAll("#page-calibrate [data-for]")) e.hidden = e.dataset.for !== what;
+}
+$("cal-what").addEventListener("change", calWhatChanged);
 $("cal-run").addEventListener("click", async () => {
   showError("cal-error", "");
   const f = $("cal-file").files[0];
   if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+  const what = $("cal-what").value;
   const form = new FormData();
   form.append("data", f, f.name);
   form.append("kind", $("cal-kind").value);
+  form.append("inlet", $("cal-lag-inlet").value);
+  form.append("density", $("cal-density").value);
+  // Flow is fitted in the channel of the Design page's config (for the fragment).
+  if (what === "flow" && app.config) form.append("config", app.config.text);
   try {
-    const r = await api("/api/calibrate/rheology", { method: "POST", body: form });
+    const r = await api(`/api/calibrate/${what}`, { method: "POST", body: form });
     $("cal-report").textContent = r.report;
     calFragment = r.fragment;
-    $("cal-fragment").textContent = r.fragment || "(no model the core accepts: see the verdicts)";
+    $("cal-fragment").textContent = r.fragment || "(no fragment: see the verdicts)";
     $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
   } catch (e) {
     showError("cal-error", e.message);
   }
 });
-// The fragment's `key = value` lines become edits of that inlet in the config editor.
+// The fragment's `key = value` lines become edits of that inlet in the config editor; a
+// fragment of several [[inlet]] tables (flow: one per material) fills that inlet and the
+// next ones.
 $("cal-apply").addEventListener("click", async () => {
   if (!calFragment || !app.config) return showError("cal-error", "Fit a measurement first.");
-  const inlet = $("cal-inlet").value;
-  const edits = calFragment.split("\n").filter((l) => l.includes("=") && !l.trim().startsWith("#")).map((l) => {
-    const i = l.indexOf("=");
-    return { path: `inlet[${inlet}].${l.slice(0, i).trim()}`, raw: l.slice(i + 1).trim() };
-  });
+  const first = Number($("cal-inlet").value);
+  let inlet = first - 1;
+  const edits = [];
+  const tables = calFragment.split("\n").some((l) => l.trim() === "[[inlet]]");
+  if (!tables) inlet = first;
+  for (const l of calFragment.split("\n")) {
+    const t = l.trim();
+    if (t === "[[inlet]]") { inlet += 1; continue; }
+    if (!t.includes("=") || t.startsWith("#")) continue;
+    const i = t.indexOf("=");
+    edits.push({ path: `inlet[${inlet}].${t.slice(0, i).trim()}`, raw: t.slice(i + 1).trim() });
+  }
+  if (!edits.length) return showError("cal-error", "This fragment has nothing to apply (see its comments).");
   try {
     const c = await postJson("/api/config/check", { text: app.config.text, edits });
     renderConfig(c);
     clearFieldErrors();
-    toast(`Applied to inlet ${inlet}; the config on the Design page now uses it.`);
+    toast(inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
   } catch (e) {
     showError("cal-error", e.message);
   }
