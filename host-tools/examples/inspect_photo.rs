@@ -1,6 +1,6 @@
 //! Regenerates the worked example of `dollop inspect` bundled in `host-tools/data/inspect/`:
-//! a 12 mm two-material chessboard job for `configs/seed-paper-valves.toml`, printed (in
-//! simulation) on a machine whose channel is 20 % longer than that config says, and a
+//! a 12 mm two-material chessboard job for `configs/seed-paper-valves.toml` with the corner
+//! markers `dollop slice --markers` adds, printed (in simulation) on a machine whose channel is 20 % longer than that config says, and a
 //! photo of it synthesized from the reference plant's deposit (random perspective, uneven
 //! light, blur, noise; seeded, so the files change only when this does).
 //! Run: `cargo run -p dollop-host --example inspect_photo`.
@@ -8,7 +8,7 @@
 use dollop_host::inspect::register::Frame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design};
-use dollop_host::slicer::job_file;
+use dollop_host::slicer::{job_file, markers};
 use dollop_sim::designs::{self, Fill};
 use std::path::Path;
 
@@ -27,6 +27,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         prime_mm: 8.0,
     };
     let job = designs::boustrophedon(&fill, designs::chessboard(3.0));
+    // With the corner markers, as `dollop slice --markers` prints them.
+    let travel = (
+        [
+            config.motion.travel_min_mm[0] as f64,
+            config.motion.travel_min_mm[1] as f64,
+        ],
+        [
+            config.motion.travel_max_mm[0] as f64,
+            config.motion.travel_max_mm[1] as f64,
+        ],
+    );
+    let pitch = config.channel.line_pitch_mm as f64;
+    let commands =
+        markers::add(&job.commands, job.start_um, pitch, travel).map_err(|e| e.to_string())?;
+    let job = dollop_sim::Job { commands, ..job };
     let dir = root.join("data/inspect");
     std::fs::create_dir_all(&dir)?;
     let body = job_file::encode_body(&job.commands);
@@ -45,9 +60,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let plant = synth::plant_config(&config, &truth.physics(&config)).map_err(|e| e.to_string())?;
     let (pitch, radius) = inspect::geometry(&config);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
+    // The photo takes in the markers.
+    let (lo, hi) = plan.extent();
     let frame = Frame {
-        lo: plan.lo,
-        hi: plan.hi,
+        lo,
+        hi,
         px_per_mm: 40.0,
         margin_mm: 2.0 * pitch,
     };

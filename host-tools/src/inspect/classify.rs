@@ -88,6 +88,17 @@ pub fn kmeans(samples: &[[f32; 3]], k: usize, seed: u64) -> Palette {
     }
 }
 
+/// The best of `restarts` k-means runs (seeds `seed`, `seed + 1`, ...): the one whose
+/// samples lie closest to their centres. One run can settle with two colours in one
+/// cluster and one split in two, which then looks like a photo of more colours than the
+/// job has.
+pub fn kmeans_best(samples: &[[f32; 3]], k: usize, seed: u64, restarts: u64) -> Palette {
+    (0..restarts.max(1))
+        .map(|r| kmeans(samples, k, seed + r))
+        .min_by(|a, b| a.spread.total_cmp(&b.spread))
+        .unwrap_or_else(|| kmeans(samples, k, seed))
+}
+
 /// Index of the centre nearest to `s` (`None`: the plate) and the squared distance.
 pub fn nearest(centres: &[[f32; 3]], s: [f32; 3]) -> (Option<usize>, f32) {
     let mut best = (None, d2(s, [1.0; 3]));

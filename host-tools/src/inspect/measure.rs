@@ -317,6 +317,72 @@ pub fn quantile(v: &[f64], q: f64) -> f64 {
     s[((s.len() - 1) as f64 * q).round() as usize]
 }
 
+/// A bead's centre line as the photo shows it: content that belongs at design point `at`
+/// shows displaced by `d` mm along the unit normal `n`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Edge {
+    /// Design point on the bead's centre line, mm.
+    pub at: [f64; 2],
+    /// Unit normal of the bead there.
+    pub n: [f64; 2],
+    /// Displacement along `n`, mm.
+    pub d: f64,
+}
+
+/// The beads' centre lines as `seen` shows them, every `every_mm` along each bead, away
+/// from its ends and turns: the middle between the bead's two sides, where both show
+/// (against the plate or another material) within three quarters of a pitch. A bead
+/// wider or narrower than its pitch moves both sides alike, so not its middle.
+/// Along-path offsets cannot see a misregistration across the rows, which these can: rows
+/// that all run along x leave y to them.
+pub fn edges(plan: &Plan, frame: &Frame, design: &[u8], seen: &[u8], every_mm: f64) -> Vec<Edge> {
+    let step = 0.25 / frame.px_per_mm;
+    let reach = 0.75 * plan.pitch;
+    let mut out = Vec::new();
+    for bead in &plan.beads {
+        let len = bead.length();
+        let n = (len / every_mm).floor() as usize;
+        for i in 0..=n {
+            let s = i as f64 * every_mm;
+            if s < plan.pitch
+                || s > len - plan.pitch
+                || bead.turns.iter().any(|&t| (s - t).abs() < plan.pitch)
+            {
+                continue;
+            }
+            let (p, u) = bead.at(s);
+            let nn = [-u[1], u[0]];
+            let mine = label_at(seen, frame, p);
+            if mine == PLATE || label_at(design, frame, p) == PLATE {
+                continue;
+            }
+            // Distance out to the side on `sign`'s side, if it shows within reach.
+            let side = |sign: f64| {
+                let mut t = 0.0;
+                while t < reach {
+                    let q = [
+                        p[0] + nn[0] * sign * (t + step),
+                        p[1] + nn[1] * sign * (t + step),
+                    ];
+                    if label_at(seen, frame, q) != mine {
+                        return Some(t + 0.5 * step);
+                    }
+                    t += step;
+                }
+                None
+            };
+            if let (Some(a), Some(b)) = (side(1.0), side(-1.0)) {
+                out.push(Edge {
+                    at: p,
+                    n: nn,
+                    d: 0.5 * (a - b),
+                });
+            }
+        }
+    }
+    out
+}
+
 /// A registration error as the boundaries show it: content that belongs at design point
 /// `p` appears displaced by an affine function of `p - c`, mm. (Quadratic terms, for the
 /// bending a misjudged perspective adds, were tried: they also soak up the real variation
@@ -351,7 +417,12 @@ impl Drift {
 /// see it with opposite signs. Fitting each switch direction's own offset plus a
 /// displacement field seen through each bead's direction separates the two. Only the axes
 /// along which every switch direction has beads running both ways are fitted.
-pub fn drift(plan: &Plan, found: &[Found]) -> Drift {
+///
+/// The beads' sides (`edges`) add what the path cannot: a displacement across the beads,
+/// read on its own (no switch direction's offset in it). Sides that a bead narrower or
+/// wider than its pitch moved are let go after a first fit: those more than three
+/// median misfits (and a quarter pixel) off it.
+pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift {
     let kind = |f: &Found| (plan.boundaries[f.index].from, plan.boundaries[f.index].to);
     let mut kinds: Vec<(u8, u8)> = found.iter().map(kind).collect();
     kinds.sort_unstable();
@@ -366,7 +437,12 @@ pub fn drift(plan: &Plan, found: &[Found]) -> Drift {
             of_kind().any(|f| dir(f)[axis] > 0.5) && of_kind().any(|f| dir(f)[axis] < -0.5)
         })
     };
-    let axes: Vec<usize> = (0..2).filter(|&a| both_ways(a)).collect();
+    // An axis is also seen from the sides of beads running across it, on both sides.
+    let sides = |axis: usize| {
+        edges.iter().filter(|e| e.n[axis] > 0.5).count() >= 8
+            && edges.iter().filter(|e| e.n[axis] < -0.5).count() >= 8
+    };
+    let axes: Vec<usize> = (0..2).filter(|&a| both_ways(a) || sides(a)).collect();
     let n = found.len();
     let mut c = [0.0; 2];
     for f in found {
@@ -374,56 +450,82 @@ pub fn drift(plan: &Plan, found: &[Found]) -> Drift {
         c[0] += p[0] / n.max(1) as f64;
         c[1] += p[1] / n.max(1) as f64;
     }
-    let mut out = Drift {
+    if n == 0 {
+        c = [
+            0.5 * (plan.lo[0] + plan.hi[0]),
+            0.5 * (plan.lo[1] + plan.hi[1]),
+        ];
+    }
+    let out = Drift {
         c,
         ..Default::default()
     };
     let terms = 3;
     let unknowns = kinds.len() + terms * axes.len();
-    if axes.is_empty() || n < unknowns + 3 {
+    if axes.is_empty() || n + edges.len() < unknowns + 3 {
         return out;
     }
-    let mut m = nalgebra::DMatrix::<f64>::zeros(n, unknowns);
-    let mut y = nalgebra::DVector::<f64>::zeros(n);
-    for (i, f) in found.iter().enumerate() {
-        let b = plan.boundaries[f.index];
-        let u = dir(f);
-        let k = kinds.iter().position(|&k| k == kind(f)).unwrap_or(0);
-        m[(i, k)] = 1.0;
-        let basis = out.basis(b.at);
+    // Rows: the found boundaries (a switch direction's offset plus the field along the
+    // path), then the sides kept (the field along their normal).
+    let solve = |keep: &[bool]| -> Option<nalgebra::DVector<f64>> {
+        let rows = n + keep.iter().filter(|&&k| k).count();
+        let mut m = nalgebra::DMatrix::<f64>::zeros(rows, unknowns);
+        let mut y = nalgebra::DVector::<f64>::zeros(rows);
+        let basis = |p: [f64; 2]| [1.0, p[0] - c[0], p[1] - c[1]];
+        for (i, f) in found.iter().enumerate() {
+            let b = plan.boundaries[f.index];
+            let u = dir(f);
+            let k = kinds.iter().position(|&k| k == kind(f)).unwrap_or(0);
+            m[(i, k)] = 1.0;
+            let basis = basis(b.at);
+            for (j, &a) in axes.iter().enumerate() {
+                for t in 0..terms {
+                    m[(i, kinds.len() + terms * j + t)] = u[a] * basis[t];
+                }
+            }
+            y[i] = f.offset;
+        }
+        for (i, e) in edges
+            .iter()
+            .zip(keep)
+            .filter(|x| *x.1)
+            .map(|x| x.0)
+            .enumerate()
+        {
+            let basis = basis(e.at);
+            for (j, &a) in axes.iter().enumerate() {
+                for t in 0..terms {
+                    m[(n + i, kinds.len() + terms * j + t)] = e.n[a] * basis[t];
+                }
+            }
+            y[n + i] = e.d;
+        }
+        m.svd(true, true).solve(&y, 1e-9).ok()
+    };
+    let field = |sol: &nalgebra::DVector<f64>| {
+        let mut d = out;
         for (j, &a) in axes.iter().enumerate() {
             for t in 0..terms {
-                m[(i, kinds.len() + terms * j + t)] = u[a] * basis[t];
+                d.k[a][t] = sol[kinds.len() + terms * j + t];
             }
         }
-        y[i] = f.offset;
-    }
-    let Ok(sol) = m.svd(true, true).solve(&y, 1e-9) else {
+        d
+    };
+    let mut keep = vec![true; edges.len()];
+    let Some(first) = solve(&keep) else {
         return out;
     };
-    for (j, &a) in axes.iter().enumerate() {
-        for t in 0..terms {
-            out.k[a][t] = sol[kinds.len() + terms * j + t];
-        }
+    let rough = field(&first);
+    let misfit: Vec<f64> = edges
+        .iter()
+        .map(|e| (e.d - rough.along(e.at, e.n)).abs())
+        .collect();
+    let cut = (3.0 * quantile(&misfit, 0.5)).max(0.25 / px_mm);
+    for (k, m) in keep.iter_mut().zip(&misfit) {
+        *k = *m <= cut;
     }
-    out
-}
-
-/// `seen` with the displacement `d` taken out: the label of each frame pixel read where
-/// its content shows (nearest pixel).
-pub fn undrift(seen: &[u8], frame: &Frame, d: &Drift) -> Vec<u8> {
-    let (w, h) = frame.size();
-    let mut out = vec![PLATE; seen.len()];
-    for y in 0..h {
-        for x in 0..w {
-            // Frame pixel centre to design point, displaced, back to a frame pixel.
-            let p = [
-                (x as f64 + 0.5) / frame.px_per_mm - frame.margin_mm + frame.lo[0],
-                frame.hi[1] + frame.margin_mm - (y as f64 + 0.5) / frame.px_per_mm,
-            ];
-            let e = d.at(p);
-            out[(y * w + x) as usize] = label_at(seen, frame, [p[0] + e[0], p[1] + e[1]]);
-        }
+    match solve(&keep) {
+        Some(sol) => field(&sol),
+        None => rough,
     }
-    out
 }

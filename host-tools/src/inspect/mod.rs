@@ -25,6 +25,12 @@ use register::Frame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// k-means runs from different seeds, the best kept (see `classify::kmeans_best`).
+pub const KMEANS_RESTARTS: u64 = 4;
+
+/// Spacing of the beads' sides read for the registration across the path, mm.
+pub const EDGE_EVERY_MM: f64 = 0.1;
+
 /// How to inspect.
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
@@ -353,7 +359,7 @@ pub fn inspect_photo(
         .map(|(c, _)| *c)
         .step_by(every)
         .collect();
-    let palette = classify::kmeans(&samples, k, 7);
+    let palette = classify::kmeans_best(&samples, k, 7, KMEANS_RESTARTS);
     check_colour_count(&samples, &palette, k).map_err(bad)?;
     let design = measure::paint(&plan, &frame);
     // The turn whose colours agree best with the design.
@@ -364,7 +370,7 @@ pub fn inspect_photo(
         let Some(proj) = register::projection(corners, &frame, turn) else {
             continue;
         };
-        let (rgb, pic) = register::rectify(&photo, &frame, proj);
+        let (rgb, pic) = register::rectify(&photo, &frame, proj, None);
         let clusters: Vec<u8> = rgb
             .iter()
             .map(|&c| classify::label(&palette.centres, c).map_or(PLATE, |j| j as u8))
@@ -394,9 +400,23 @@ pub fn inspect_photo(
         [plan.hi[0], plan.lo[1]],
         [plan.lo[0], plan.lo[1]],
     ];
+    // Along the path only the boundaries show a misregistration; across it the beads'
+    // centre lines do (rows all along x leave y to them). The outline needs them: its
+    // corners sit where the outer beads' width puts them. The markers' own centre lines
+    // register across the path already, and on the calibration pattern (rows of
+    // unequal width after every switch) the beads' centre lines measured worse.
+    let drift_of = |seen: &[u8]| {
+        let found = measure::boundaries(&plan, &frame, seen);
+        let sides = if registration == Registration::Markers {
+            Vec::new()
+        } else {
+            measure::edges(&plan, &frame, &design, seen, EDGE_EVERY_MM)
+        };
+        (measure::drift(&plan, &found, &sides, o.px_per_mm), found)
+    };
+    let mut proj_now = register::projection(corners, &frame, turn);
     for _ in 0..2 {
-        let found = measure::boundaries(&plan, &frame, &seen);
-        let d = measure::drift(&plan, &found);
+        let (d, _) = drift_of(&seen);
         for k in 0..4 {
             // The content for design corner q shows at q + d(q): aim the photo's corner
             // that much the other way (frame y runs down).
@@ -409,21 +429,25 @@ pub fn inspect_photo(
         let Some(proj) = register::projection_to(corners, targets, turn) else {
             break;
         };
-        let (rgb, pic) = register::rectify(&photo, &frame, proj);
+        let (rgb, pic) = register::rectify(&photo, &frame, proj, None);
         seen = label(&rgb);
         rectified = pic;
+        proj_now = Some(proj);
     }
     // What the corners cannot take out (a perspective the four corners misjudged) is
     // taken out of the offsets themselves.
-    let mut found = measure::boundaries(&plan, &frame, &seen);
-    let residual = measure::drift(&plan, &found);
+    let (residual, mut found) = drift_of(&seen);
     for f in &mut found {
         let b = plan.boundaries[f.index];
         f.offset -= residual.along(b.at, plan.beads[b.bead].at(b.s).1);
     }
-    // The same residual, taken out of the labels: each frame pixel reads the label where
-    // its content shows.
-    let seen = measure::undrift(&seen, &frame, &residual);
+    // The same residual, taken out of the labels: the photo sampled once more, straight
+    // into the frame, each frame pixel where its content shows.
+    if let Some(proj) = proj_now {
+        let (rgb, pic) = register::rectify(&photo, &frame, proj, Some(&residual));
+        seen = label(&rgb);
+        rectified = pic;
+    }
     let pattern_error = measure::pattern_error(&design, &seen);
     let mut moved = plan.clone();
     for f in &found {
@@ -511,7 +535,7 @@ fn check_colour_count(
     }
     // More: one more cluster that is well apart, well populated and halves the spread.
     if k < 6 {
-        let more = classify::kmeans(samples, k + 1, 11);
+        let more = classify::kmeans_best(samples, k + 1, 11, KMEANS_RESTARTS);
         let mut count = vec![0usize; k + 1];
         for &s in samples {
             if let (Some(j), _) = classify::nearest(&more.centres, s) {

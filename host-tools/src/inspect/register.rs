@@ -4,9 +4,10 @@
 //! the design, and the photo resampled into the design's frame. Which of the four
 //! rotations is right is decided by the caller from the colours.
 
+use super::measure::Drift;
 use super::photo::Photo;
 use image::{GrayImage, Rgb, RgbImage};
-use imageproc::geometric_transformations::{warp_into, Border, Interpolation, Projection};
+use imageproc::geometric_transformations::{warp_into_with, Border, Interpolation, Projection};
 
 /// The design's frame as an image: `px_per_mm` pixels a millimetre, `margin_mm` around
 /// the footprint from `lo` to `hi`, image y running down (design y up).
@@ -199,9 +200,34 @@ pub fn projection_to(photo: [[f64; 2]; 4], to: [[f64; 2]; 4], turn: usize) -> Op
 }
 
 /// The photo's evened colours resampled into `frame` through `proj` (bilinear; outside
-/// the photo reads as plate), as f32 RGB and as an 8-bit picture for people.
-pub fn rectify(photo: &Photo, frame: &Frame, proj: Projection) -> (Vec<[f32; 3]>, RgbImage) {
+/// the photo reads as plate), as f32 RGB and as an 8-bit picture for people. With
+/// `drift`, each frame pixel reads the photo where `drift` says its content shows, in the
+/// same single resampling (labels resampled a second time would drop or double the
+/// one-pixel slivers of plate between beads).
+pub fn rectify(
+    photo: &Photo,
+    frame: &Frame,
+    proj: Projection,
+    drift: Option<&Drift>,
+) -> (Vec<[f32; 3]>, RgbImage) {
     let (w, h) = frame.size();
+    let back = proj.invert();
+    let ppm = frame.px_per_mm;
+    let drift = drift.copied();
+    // Frame pixel (its centre at +0.5, as `to_px` has it) to where the photo shows it.
+    let mapping = move |x: f32, y: f32| -> (f32, f32) {
+        let (mut fx, mut fy) = (x as f64, y as f64);
+        if let Some(d) = drift {
+            let p = [
+                (fx + 0.5) / ppm - frame.margin_mm + frame.lo[0],
+                frame.hi[1] + frame.margin_mm - (fy + 0.5) / ppm,
+            ];
+            let e = d.at(p);
+            fx += e[0] * ppm;
+            fy -= e[1] * ppm;
+        }
+        back * (fx as f32, fy as f32)
+    };
     // Three channels in f32 through imageproc's warp, one image per channel.
     let mut out = vec![[1.0f32; 3]; (w * h) as usize];
     for k in 0..3 {
@@ -211,9 +237,9 @@ pub fn rectify(photo: &Photo, frame: &Frame, proj: Projection) -> (Vec<[f32; 3]>
             |x, y| image::Luma([photo.get(x, y)[k]]),
         );
         let mut dst = image::ImageBuffer::<image::Luma<f32>, Vec<f32>>::new(w, h);
-        warp_into(
+        warp_into_with(
             &src,
-            proj,
+            mapping,
             Interpolation::Bilinear,
             Border::Constant(image::Luma([1.0])),
             &mut dst,

@@ -49,6 +49,10 @@ pub struct Suggestion {
 /// narrow).
 type Candidate = (String, Box<dyn Fn(f64) -> Truth>, (f64, f64), bool, bool);
 
+/// An error common to every boundary read off the photo, in frame pixels, that the
+/// interval allows for (see `suggest`).
+pub const SYSTEMATIC_PX: f64 = 0.25;
+
 /// Offsets the photo cannot resolve better than this (RMS, mm): nothing is changed.
 pub const DEADBAND_MM: f64 = 0.02;
 
@@ -191,10 +195,17 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
             // unknown, and the step shrinks until both sides can be evaluated.)
             let mut h = (hi - lo) * 0.02;
             let mut curv = f64::NAN;
+            // The simulated offsets' change with the value, mm per unit, each boundary.
+            let mut slope: Vec<f64> = Vec::new();
             for _ in 0..6 {
-                let (up, down) = (f(x + h), f(x - h));
-                if up.is_finite() && down.is_finite() {
-                    curv = (up + down - 2.0 * best) / (h * h);
+                let sim = |x: f64| simulated(i, config, job, &truth_of(x));
+                if let (Some(up), Some(down)) = (sim(x + h), sim(x - h)) {
+                    curv = (sse(i, &up) + sse(i, &down) - 2.0 * best) / (h * h);
+                    slope = up
+                        .iter()
+                        .zip(&down)
+                        .map(|(u, d)| (u - d) / (2.0 * h))
+                        .collect();
                     break;
                 }
                 h *= 0.3;
@@ -204,12 +215,31 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
             } else {
                 f64::NAN
             };
-            let half = 1.96 * var.sqrt();
+            // The scatter of the offsets about the fit is not all the photo can get wrong:
+            // an error common to every boundary (the photo read at `SYSTEMATIC_PX` of a
+            // frame pixel) moves the best value by bias * sum(slope) / sum(slope^2),
+            // which no scatter shows. It is added to the interval.
+            let (sum, sum2) = slope
+                .iter()
+                .fold((0.0, 0.0), |(a, b), &g| (a + g, b + g * g));
+            let bias = SYSTEMATIC_PX / i.frame.px_per_mm;
+            let systematic = if sum2 > 0.0 {
+                bias * sum.abs() / sum2
+            } else {
+                0.0
+            };
+            let half = 1.96 * var.sqrt() + systematic;
             let shown = |v: f64| if log { v.exp() } else { v };
+            // Not beyond the physical limit at the range's low end.
+            let low = if lo_physical {
+                (x - half).max(lo)
+            } else {
+                x - half
+            };
             fits.push(Fit {
                 what,
                 truth: truth_of(x),
-                value: (shown(x), shown(x - half), shown(x + half)),
+                value: (shown(x), shown(low), shown(x + half)),
                 rms: rms(best),
             });
         }

@@ -192,7 +192,7 @@ pub fn add(
 /// The markers among a job's beads (each bead's corner points, mm, and its number of
 /// material runs, in print order), if the last four are markers: one material each, two
 /// legs at a right angle, three with legs of one length and one with legs `LONG` times as
-/// long, all outside the box of the beads before them.
+/// long, each where [`add`] puts it about the beads before them for beads `pitch` wide.
 pub fn recognise(beads: &[(Vec<[f64; 2]>, usize)], pitch: f64) -> Option<[Marker; 4]> {
     if beads.len() < 5 {
         return None;
@@ -236,9 +236,22 @@ pub fn recognise(beads: &[(Vec<[f64; 2]>, usize)], pitch: f64) -> Option<[Marker
             hi[a] = hi[a].max(p[a]);
         }
     }
-    let outside = |p: [f64; 2]| p[0] < lo[0] || p[0] > hi[0] || p[1] < lo[1] || p[1] > hi[1];
+    // Confirmed against the job: exactly where `add` puts markers about the beads before
+    // them (to the micrometre the job stores), so a design that happens to end in four Ls
+    // elsewhere is not taken for markers.
+    let half = pitch / 2.0;
+    let want = layout(
+        [lo[0] - half, lo[1] - half],
+        [hi[0] + half, hi[1] + half],
+        pitch,
+    );
+    let near =
+        |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() <= 2e-3 && (a[1] - b[1]).abs() <= 2e-3;
     out.iter()
-        .all(|m| outside(m.corner) && m.ends.iter().all(|&e| outside(e)))
+        .zip(&want)
+        .all(|(m, w)| {
+            near(m.corner, w.corner) && near(m.ends[0], w.ends[0]) && near(m.ends[1], w.ends[1])
+        })
         .then_some(out)
 }
 
@@ -326,6 +339,21 @@ mod tests {
         let mut cut = cmds.clone();
         cut.remove(cut.len() - 2);
         assert!(recognise(&beads(&cut), 0.8).is_none());
+        // Four Ls of the markers' shape that a design happens to end with, a millimetre
+        // from where `add` puts markers, are not taken for markers; nor are the markers
+        // read for another pitch.
+        let mut moved = cmds.clone();
+        for c in &mut moved {
+            // The markers' travels (the design's lie at y 0 and 3 mm).
+            if let Command::Travel { x, y, .. } = c {
+                if *y < 0 || *y > 3400 {
+                    *x += 1000;
+                }
+            }
+        }
+        assert_ne!(beads(&moved), b);
+        assert!(recognise(&beads(&moved), 0.8).is_none());
+        assert!(recognise(&b, 0.9).is_none());
     }
 
     #[test]
