@@ -10,8 +10,17 @@ use dollop_sim::RunResult;
 
 /// The bounds the issue sets for every printed part.
 fn assert_part(name: &str, cfg_name: &str, r: &RunResult, boundaries_at_least: usize) {
+    assert_part_on(name, &config(cfg_name), r, boundaries_at_least);
+}
+
+/// [`assert_part`] for a config built in the test.
+fn assert_part_on(
+    name: &str,
+    cfg: &dollop::config::Config,
+    r: &RunResult,
+    boundaries_at_least: usize,
+) {
     summary(name, r);
-    let cfg = config(cfg_name);
     let m = cfg.validate::<f64, 4>().unwrap();
     assert_eq!(
         r.state,
@@ -211,5 +220,64 @@ fn stepper_syringes_boundary_inside_a_bead_end_tail_is_the_known_limit() {
             .and_then(|t| t.parse().ok())
             .expect("stripe length");
         assert!(len < 0.3, "stray stripe of {len} mm");
+    }
+}
+
+/// The seed printhead's valves with `k` inlets: pastes A and B as bundled, then pastes of
+/// 2.2 and 1.8 Pa s on the same valves (no bundled config has more than two inlets).
+fn valves_with(k: usize) -> dollop::config::Config {
+    let path = format!("{}/configs/{VALVES}", env!("CARGO_MANIFEST_DIR"));
+    let mut text = std::fs::read_to_string(path).unwrap();
+    for (name, mu) in [("paste C (2.2 Pa s)", 2.2), ("paste D (1.8 Pa s)", 1.8)]
+        .into_iter()
+        .take(k - 2)
+    {
+        text.push_str(&format!(
+            "\n[[inlet]]\nmaterial = \"{name}\"\nrheology = {{ newtonian = {{ viscosity_pa_s = {mu} }} }}\npressure_kpa = \"auto\"\nvalve_open_delay_ms = 10.0\nvalve_close_delay_ms = 10.0\npressure_rise_ms = 30.0\npressure_decay_ms = 20.0\n"
+        ));
+    }
+    let c: dollop::config::Config = toml::from_str(&text).unwrap();
+    assert_eq!(c.inlets.len(), k);
+    c
+}
+
+#[test]
+fn three_and_four_materials_meet_the_same_bounds() {
+    // Every ordered pair of materials meets in the channel. Rows go in pairs, one each
+    // way; a pair's stripes step through the materials by `step` (from `offset`), so the
+    // forward row switches m -> m + step and the row back m -> m - step.
+    for k in [3usize, 4] {
+        let cfg = valves_with(k);
+        let steps: &[i64] = if k == 3 { &[1, 2] } else { &[1, 2, 2, 3] };
+        let j = job(&fill(15.0, 2 * steps.len(), 1), move |x, y, _| {
+            let pair = (y / 1.6).floor() as i64;
+            let step = steps[pair.rem_euclid(steps.len() as i64) as usize];
+            let stripe = (x / 2.5).floor() as i64;
+            (stripe * step + pair).rem_euclid(k as i64) as u8
+        });
+        let mut pairs = std::collections::BTreeSet::new();
+        let mut last: Option<u8> = None;
+        for c in &j.commands {
+            match *c {
+                dollop::Command::Print { material, .. } => {
+                    if let Some(l) = last.filter(|&l| l != material) {
+                        pairs.insert((l, material));
+                    }
+                    last = Some(material);
+                }
+                _ => last = None,
+            }
+        }
+        assert_eq!(pairs.len(), k * (k - 1), "{k} materials: {pairs:?}");
+        let r = run(&cfg, &j);
+        let name = format!("stripes/{k} materials/valves");
+        // Six stripes a row: five switches in each of 4 or 8 rows, less where a row's
+        // last stripe carries on round the turn.
+        assert_part_on(&name, &cfg, &r, 5 * 2 * steps.len() - 2);
+        assert!(
+            r.switches as usize >= 5 * 2 * steps.len() - 2,
+            "{name}: {} switches",
+            r.switches
+        );
     }
 }
