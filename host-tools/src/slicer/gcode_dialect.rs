@@ -217,23 +217,13 @@ pub fn write(
     );
     for i in 0..inlets {
         let name = material_names.get(i).map_or("", |s| s.as_str());
-        let _ = match dialect.kind {
-            Kind::Marlin => writeln!(
-                w.out,
-                "; valve of inlet {i} ({name}) is board pin {}",
-                dialect.port(i)
-            ),
-            Kind::Klipper => writeln!(
-                w.out,
-                "; valve of inlet {i} ({name}) is [output_pin {KLIPPER_PIN}{}]",
-                dialect.port(i)
-            ),
-            _ => writeln!(
-                w.out,
-                "; valve of inlet {i} ({name}) is GPIO port {}",
-                dialect.port(i)
-            ),
+        let port = dialect.port(i);
+        let what = match dialect.kind {
+            Kind::Marlin => format!("board pin {port}"),
+            Kind::Klipper => format!("[output_pin {KLIPPER_PIN}{port}]"),
+            _ => format!("GPIO port {port}"),
         };
+        let _ = writeln!(w.out, "; valve of inlet {i} ({name}) is {what}");
     }
     w.out.push_str("G21\nG90\n");
     if dialect.kind == Kind::RepRap {
