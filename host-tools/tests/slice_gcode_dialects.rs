@@ -70,7 +70,15 @@ fn each_dialect_is_written_and_the_default_is_plain_from_the_run() {
         "{g:.2000}"
     );
     assert!(!g.contains("M42"));
-    let (code, err) = slice(d, &["--gcode-dialect", "marlin", "--gcode-ports", "40"]);
+    let (code, err) = slice(d, &["--gcode-dialect", "marlin", "--gcode-ports", "2,3"]);
+    assert_eq!(code, 0, "{err}");
+    let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
+    assert!(
+        g.contains("M106 P2 S255\n") && g.contains("M107 P3\n") && !g.contains("M400\nM106"),
+        "{g:.2000}"
+    );
+    assert!(g.contains("LASER_SYNCHRONOUS_M106_M107") && !g.contains("M42"));
+    let (code, err) = slice(d, &["--gcode-dialect", "marlin-m42", "--gcode-ports", "40"]);
     assert_eq!(code, 0, "{err}");
     let g = std::fs::read_to_string(d.join("logo.gcode")).unwrap();
     assert!(g.contains("M400\nM42 P40 S255") && g.contains("M42 P1 S255"));
@@ -89,6 +97,11 @@ fn bad_gcode_options_are_refused_in_one_line() {
         // Inlet 1 keeps port 1 by default: taken by inlet 0.
         (&["--gcode-ports", "1"][..], "--gcode-ports"),
         (&["--gcode-ports", "99999"][..], "--gcode-ports"),
+        // Marlin has fans P0 to P7.
+        (
+            &["--gcode-dialect", "marlin", "--gcode-ports", "0,8"][..],
+            "P0 to P7",
+        ),
         (
             &["--gcode-style", "fine", "--gcode-dialect", "reprap"][..],
             "--gcode-style run",

@@ -333,6 +333,7 @@ pub fn gcode_quality(ctx: &Ctx) -> anyhow::Result<()> {
                 ("run, reprap", Kind::RepRap),
                 ("run, klipper", Kind::Klipper),
                 ("run, marlin", Kind::Marlin),
+                ("run, marlin-m42", Kind::MarlinM42),
             ] {
                 let opt = RunExport {
                     dialect: Dialect::new(kind),

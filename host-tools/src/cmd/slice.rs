@@ -45,12 +45,15 @@ pub struct Args {
     /// moves; the firmware must run M42 in its place in the move sequence), `reprap`
     /// (RepRapFirmware 3: `G1 ... P<bitmap>` mapped by `M670`, `M400` + `M42` while
     /// standing), `klipper` (`SET_PIN PIN=dollop_valve<port> VALUE=0|1`, which Klipper
-    /// schedules with the moves; needs `[output_pin dollop_valve<port>]` sections) or `marlin` (`M400` then `M42 P<pin> S0|255`: the head stops at each
-    /// valve change).
-    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "klipper", "marlin"])]
+    /// schedules with the moves; needs `[output_pin dollop_valve<port>]` sections),
+    /// `marlin` (`M106 P<fan> S255` / `M107 P<fan>`: valves on fan outputs, Marlin built
+    /// with LASER_SYNCHRONOUS_M106_M107 so fan changes are queued with the moves) or
+    /// `marlin-m42` (`M400` then `M42 P<pin> S0|255`, for stock Marlin: the head stops at
+    /// each valve change).
+    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "klipper", "marlin", "marlin-m42"])]
     pub gcode_dialect: String,
-    /// Port (plain, reprap), output_pin number (klipper) or board pin (marlin) of each inlet's valve, inlet 0 first
-    /// [default: 0,1,..].
+    /// Port (plain, reprap), output_pin number (klipper), fan index 0-7 (marlin) or board
+    /// pin (marlin-m42) of each inlet's valve, inlet 0 first [default: 0,1,..].
     #[arg(long, value_name = "P0,P1,..")]
     pub gcode_ports: Option<String>,
     /// Refuse to write G-code larger than this, MiB (`--gcode-style run`): it is built in
@@ -235,18 +238,21 @@ fn gcode_dialect(a: &Args, inlets: usize) -> Result<Dialect, SliceError> {
         "reprap" => Kind::RepRap,
         "klipper" => Kind::Klipper,
         "marlin" => Kind::Marlin,
+        "marlin-m42" => Kind::MarlinM42,
         _ => Kind::Plain,
     };
+    let max = Dialect::max_port(kind);
     let mut ports = Vec::new();
     if let Some(list) = &a.gcode_ports {
         let bad = || {
             SliceError::Option(format!(
-                "--gcode-ports {list:?} must be up to {inlets} different port numbers (0 to 65535) separated by commas, inlet 0 first"
+                "--gcode-ports {list:?} must be up to {inlets} different port numbers (0 to {max}{}) separated by commas, inlet 0 first",
+                if kind == Kind::Marlin { ": Marlin's fans P0 to P7" } else { "" }
             ))
         };
         for t in list.split(',') {
             let p: u32 = t.trim().parse().map_err(|_| bad())?;
-            if p > 65_535 || ports.contains(&p) {
+            if p > max || ports.contains(&p) {
                 return Err(bad());
             }
             ports.push(p);

@@ -1,8 +1,11 @@
 //! The words of each G-code dialect for a sampled executor run (`gcode_exec::Step`s):
 //! `plain` (`G0`/`G1`/`M42`/`G4`, what any firmware accepts), `reprap` (RepRapFirmware's
 //! `G1 ... P<bitmap>` with the ports mapped by `M670`), `klipper` (`SET_PIN`, which
-//! Klipper schedules with the moves) and `marlin` (`M400` then `M42 P<pin> S0|255`). What each assumes of the firmware is on `Dialect`. Only
-//! formatting lives here: where moves and valve changes fall is decided before.
+//! Klipper schedules with the moves), `marlin` (`M106`/`M107` on fan outputs, which Marlin
+//! built with `LASER_SYNCHRONOUS_M106_M107` queues with the moves) and `marlin-m42`
+//! (`M400` then `M42 P<pin> S0|255`, for stock builds). What each assumes of the firmware
+//! is on `Kind`. Only formatting lives here: where moves and valve changes fall is decided
+//! before.
 
 use super::gcode::{num, GcodeStats};
 use super::gcode_exec::Step;
@@ -14,8 +17,9 @@ use std::fmt::Write as _;
 pub struct Dialect {
     /// The words used.
     pub kind: Kind,
-    /// Port (`plain`, `reprap`) or board pin (`marlin`) of each inlet's valve, inlet 0
-    /// first; inlet i uses i where the list is shorter.
+    /// Port (`plain`, `reprap`), `output_pin` number (`klipper`), fan index (`marlin`) or
+    /// board pin (`marlin-m42`) of each inlet's valve, inlet 0 first; inlet i uses i where
+    /// the list is shorter.
     pub ports: Vec<u32>,
 }
 
@@ -45,12 +49,25 @@ pub enum Kind {
     /// peak of a move that would speed up and at once slow down; the moves here mostly
     /// hold their speed, but the judge's planner has no such rule).
     Klipper,
-    /// Marlin: `M400` then `M42 P<pin> S<0|255>` for every valve change. Marlin runs
-    /// `M42` when it reads the line, ahead of the moves still queued, so `M400` holds it
-    /// until the head arrives: the head comes to a full stop at every valve change made
-    /// while moving (what that costs shows in `gcode_judge`'s figures). Assumes the pins
-    /// are free (not claimed by a heater, fan or endstop).
+    /// Marlin 2 with each valve on a fan output: `M106 P<fan> S255` opens, `M107 P<fan>`
+    /// closes, between the moves, exactly where the executor switched. Built with
+    /// `LASER_SYNCHRONOUS_M106_M107`, Marlin queues a fan change as a sync block among the
+    /// moves: the stepper interrupt sets the fans when it reaches that block, and the
+    /// planner's look-ahead passes over it, so the valve switches where the head is,
+    /// without stopping it (the same timing as `Plain`). Assumes that option, `FAN_COUNT`
+    /// covering the fan indices used (0 to 7), no auto-fan or controller-fan on those
+    /// outputs, and a fan PWM whose period is short against the valves' dead time (S255 is
+    /// full on, so kick-start and minimum PWM do not matter). Without the option Marlin
+    /// still sets fans from the block it is executing, but in its idle loop, milliseconds
+    /// late: use `MarlinM42` there.
     Marlin,
+    /// Marlin's `M42`, for builds without synchronous fans: `M400` then
+    /// `M42 P<pin> S<0|255>` for every valve change. Marlin runs `M42` when it reads the
+    /// line, ahead of the moves still queued, so `M400` holds it until the head arrives:
+    /// the head comes to a full stop at every valve change made while moving (what that
+    /// costs shows in `gcode_judge`'s figures). Assumes the pins are free (not claimed by a
+    /// heater, fan or endstop).
+    MarlinM42,
 }
 
 impl Dialect {
@@ -72,6 +89,14 @@ impl Dialect {
             Kind::RepRap => "reprap",
             Kind::Klipper => "klipper",
             Kind::Marlin => "marlin",
+            Kind::MarlinM42 => "marlin-m42",
+        }
+    }
+    /// The highest port number the dialect can address: Marlin has at most eight fans.
+    pub fn max_port(kind: Kind) -> u32 {
+        match kind {
+            Kind::Marlin => 7,
+            _ => 65_535,
         }
     }
 }
@@ -152,10 +177,10 @@ impl Writer<'_> {
         }
     }
 
-    /// `M42` for each changed valve, closes first.
+    /// The dialect's output command for each changed valve, closes first.
     fn m42(&mut self, mask: u32) {
         let (on, off) = match self.dialect.kind {
-            Kind::Marlin => (255, 0),
+            Kind::MarlinM42 => (255, 0),
             _ => (1, 0),
         };
         let changed = mask ^ self.valves;
@@ -164,11 +189,14 @@ impl Writer<'_> {
                 if changed & (1 << i) != 0 && (mask & (1 << i) != 0) == opening {
                     let port = self.dialect.port(i);
                     let s = if opening { on } else { off };
-                    if self.dialect.kind == Kind::Klipper {
-                        let _ = writeln!(self.out, "SET_PIN PIN={KLIPPER_PIN}{port} VALUE={s}");
-                    } else {
-                        let _ = writeln!(self.out, "M42 P{port} S{s}");
-                    }
+                    let _ = match self.dialect.kind {
+                        Kind::Klipper => {
+                            writeln!(self.out, "SET_PIN PIN={KLIPPER_PIN}{port} VALUE={s}")
+                        }
+                        Kind::Marlin if opening => writeln!(self.out, "M106 P{port} S255"),
+                        Kind::Marlin => writeln!(self.out, "M107 P{port}"),
+                        _ => writeln!(self.out, "M42 P{port} S{s}"),
+                    };
                 }
             }
         }
@@ -219,7 +247,10 @@ pub fn write(
         let name = material_names.get(i).map_or("", |s| s.as_str());
         let port = dialect.port(i);
         let what = match dialect.kind {
-            Kind::Marlin => format!("board pin {port}"),
+            Kind::Marlin => format!(
+                "fan P{port} (M106/M107, queued with the moves: needs LASER_SYNCHRONOUS_M106_M107)"
+            ),
+            Kind::MarlinM42 => format!("board pin {port}"),
             Kind::Klipper => format!("[output_pin {KLIPPER_PIN}{port}]"),
             _ => format!("GPIO port {port}"),
         };
@@ -286,11 +317,11 @@ pub fn write(
                 w.count_switch(opened);
                 match dialect.kind {
                     Kind::RepRap => pending = Some(mask),
-                    Kind::Plain | Kind::Klipper => {
+                    Kind::Plain | Kind::Klipper | Kind::Marlin => {
                         w.flush_dwell();
                         w.m42(mask);
                     }
-                    Kind::Marlin => {
+                    Kind::MarlinM42 => {
                         w.flush_dwell();
                         w.out.push_str("M400\n");
                         w.m42(mask);
@@ -403,11 +434,24 @@ mod tests {
             [0.0, 0.0, 0.6],
             &c,
             &[],
-            &Dialect::new(Kind::Marlin),
+            &Dialect::new(Kind::MarlinM42),
         );
         assert!(
             g.contains("G1 X1 F597.6\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),
             "{g}"
         );
+        // Synchronous fans: in the move sequence, no M400 between moves.
+        let (g, _) = write(
+            &steps(),
+            [0.0, 0.0, 0.6],
+            &c,
+            &[],
+            &Dialect::new(Kind::Marlin),
+        );
+        assert!(
+            g.contains("M106 P0 S255\nG4 P10\nG1 X1 F597.6\nM107 P0\nM106 P1 S255\nG1 X1.25 F750\nM107 P1\nG4 P30\n"),
+            "{g}"
+        );
+        assert!(!g.contains("M42") && g.contains("fan P1 (M106/M107"), "{g}");
     }
 }

@@ -5,8 +5,8 @@
 //! two full stops with a look-ahead over all of them; a junction is taken at the lower of
 //! the two feeds if the junction-deviation rule allows that speed there, otherwise the
 //! head comes to a full stop (a real planner would slow to the rule's speed instead: this
-//! is harsher); `M42` takes effect when the head reaches it in the move sequence, with no
-//! stall; `M400` and `G4` stop the head; `G1 ... P<bitmap>` sets the ports mapped by
+//! is harsher); `M42` (and Marlin's synchronous `M106`/`M107`, Klipper's `SET_PIN`) takes
+//! effect when the head reaches it in the move sequence, with no stall; `M400` and `G4` stop the head; `G1 ... P<bitmap>` sets the ports mapped by
 //! `M670 P` as that move starts, `M670 T` ms early. Valve dead time and pressure rise and
 //! decay are the plant's, as configured. Measures where each material boundary lands along
 //! the path the G-code traced against the design, and the bead section over every
@@ -99,6 +99,19 @@ pub fn parse(text: &str) -> Vec<Op> {
                 if let (Some(port), Some(on)) = (p, s) {
                     ops.push(Op::Valve { port, on });
                 }
+            }
+            // Marlin's fans with `LASER_SYNCHRONOUS_M106_M107`: queued with the moves, as
+            // `M42` is here. `P` defaults to fan 0, `M106`'s `S` to full on.
+            c @ ("M106" | "M107") => {
+                let (mut port, mut on) = (0, c == "M106");
+                for w in words {
+                    match word(w) {
+                        Some(('P', v)) if (0.0..=u32::MAX as f64).contains(&v) => port = v as u32,
+                        Some(('S', v)) if c == "M106" => on = v > 0.0,
+                        _ => {}
+                    }
+                }
+                ops.push(Op::Valve { port, on });
             }
             "G4" => {
                 let mut t = 0.0;
@@ -819,6 +832,16 @@ mod tests {
             parse("SET_PIN PIN=dollop_valve12 VALUE=1\nset_pin pin=dollop_valve0 value=0.0\n"),
             vec![
                 Op::Valve { port: 12, on: true },
+                Op::Valve { port: 0, on: false }
+            ]
+        );
+        assert_eq!(
+            parse("M106 P3 S255\nM107 P3\nm106\nM106 P1 S0\nM107\n"),
+            vec![
+                Op::Valve { port: 3, on: true },
+                Op::Valve { port: 3, on: false },
+                Op::Valve { port: 0, on: true },
+                Op::Valve { port: 1, on: false },
                 Op::Valve { port: 0, on: false }
             ]
         );
