@@ -289,6 +289,7 @@ class Driver(threading.Thread):
         if fol.latest["progress"] >= 1.0:
             r["pause"] = "the print ended before %.0f %%" % (100 * a.pause_at)
             return
+        r["pause_asked"] = fol.latest["progress"]
         r["pause_msg"] = d.action(bid, "pause")
         r["paused_view"] = fol.wait(lambda v: v["activity"] == "paused", 120, "paused")
         # Held: read from the pin log's lengths (appended by the main thread only).
@@ -395,9 +396,10 @@ def checks(r, fol, b, dash, res, wall, virtual):
     if "pause" in r:
         ok = r["pause"] == "ok" and r["held_edges"] == 0 and r["held_opens"] == 0 and r["held_mask"] == 0
         fig = r["pause"] if r["pause"] != "ok" else (
-            "pause at %.1f %% (%r), shown paused at command %d; held 2 s wall: %d STEP edges, %d valve-open writes; "
-            "resume: %r; the pins are compared from the first change after it" % (
-                100 * r["paused_view"]["progress"], r["pause_msg"], r["paused_view"]["command"], r["held_edges"],
+            "pause asked at %.1f %% (%r), shown paused at the bead's end, %.1f %% (command %d); held 2 s wall: %d STEP "
+            "edges, %d valve-open writes; resume: %r; the pins are compared from the first change after it" % (
+                100 * r["pause_asked"], r["pause_msg"], 100 * r["paused_view"]["progress"],
+                r["paused_view"]["command"], r["held_edges"],
                 r["held_opens"], r["resume_msg"]))
         out.append(("pause then resume from the dashboard", ok, fig))
     said = " ".join("%s %s" % (v.get("message") or "", v.get("fault") or "") for v in views)
