@@ -956,7 +956,9 @@ class Emulator:
             "disabled" if self.chip.pin("GPIOB", 15) else "ENABLED", self.chip.pin("GPIOB", 15)))
 
 
-FIL_SCENARIOS = ["print", "pause", "abort", "link-cut", "estop", "flipped"]
+FIL_SCENARIOS = ["print", "pause", "abort", "link-cut", "estop", "flipped", "serve"]
+# Without --fil: all but serve, which needs the design the job was sliced from (--design).
+FIL_DEFAULT = [s for s in FIL_SCENARIOS if s != "serve"]
 EMULATORS = []
 DEBUG = bool(os.environ.get("EMULATE_DEBUG"))
 
@@ -1368,7 +1370,14 @@ def main():
     fil.add_argument("--job", help="job file (.dlp) to print; runs the firmware-in-the-loop scenarios")
     fil.add_argument("--config", help="its machine config (TOML)")
     fil.add_argument("--fil", action="append", choices=FIL_SCENARIOS,
-                     help="scenario to run (repeatable; default: all of %s)" % ", ".join(FIL_SCENARIOS))
+                     help="scenario to run (repeatable; default: %s; serve: the dashboard, `dollop serve`, "
+                          "slices --design and prints it through its HTTP API)" % ", ".join(FIL_DEFAULT))
+    fil.add_argument("--design", help="serve: the design the job was sliced from (uploaded to the dashboard)")
+    fil.add_argument("--slice-options", default="{}",
+                     help="serve: the Design page's slicing options as it posts them (JSON), e.g. "
+                          "'{\"width_mm\": 2.4, \"layers\": 2}'")
+    fil.add_argument("--pause-at", type=float, default=0.3,
+                     help="serve: pause (then resume) through the dashboard at this progress (0 or less: no pause)")
     fil.add_argument("--dollop", default="target/release/dollop", help="the host tool")
     fil.add_argument("--inset-mm", type=float, default=1.0,
                      help="power-up position: this far inside each axis's homing end (default 1)")
@@ -1381,6 +1390,8 @@ def main():
     args = ap.parse_args()
     if args.job and not args.config:
         ap.error("--job needs --config")
+    if args.fil and "serve" in args.fil and not args.design:
+        ap.error("--fil serve needs --design (the file the job was sliced from)")
 
     log_dir = args.keep_log or tempfile.mkdtemp(prefix="dollop-emulate-")
     os.makedirs(log_dir, exist_ok=True)
@@ -1395,7 +1406,7 @@ def main():
         run_scenarios(image, args, log_dir, scen, results)
         if args.job:
             from emulator import fil
-            args.fil = args.fil or FIL_SCENARIOS
+            args.fil = args.fil or FIL_DEFAULT
             summary = fil.run(image, args, log_dir, results)
     except (TargetGone, RuntimeError, OSError) as e:
         print("emulate: error: %s" % e, file=sys.stderr)

@@ -944,8 +944,18 @@ def check_print(res):
                 "(%.0f/s), %d STEP edges" % (
                     res["exit"], last_line(res["host"]), res["virtual"], res["wall"], res["running"], res["stops"],
                     res["stops"] / max(res["wall"], 1e-9), len(b.log.edges))))
-    out.append(("no fault, Late or Underrun", not b.faults and "Underrun" not in res["host"] and "Late" not in res["host"],
-                "; ".join("%s at %.3f s: %s" % (f[0], f[1] / 1e9, f[2]) for f in b.faults) or "none (halt reasons come over the link)"))
+    return out + check_printed(res, res["host"])
+
+
+def check_printed(res, host_text):
+    """The checks every whole print makes of the board, whoever drove it (`dollop send` or
+    the dashboard): no fault stop and no Late/Underrun in what the host said
+    (`host_text`), the watchdog around the upload's erases, and the pins against the
+    simulator (`compare`'s result in res)."""
+    b = res["board"]
+    out = [("no fault, Late or Underrun", not b.faults and "Underrun" not in host_text and "Late" not in host_text,
+            "; ".join("%s at %.3f s: %s" % (f[0], f[1] / 1e9, f[2]) for f in b.faults)
+            or "none (halt reasons come over the link)")]
     out.append(check_watchdog_around_erases(b))
     s = res["summary"]
     out.append(("pins match the simulator", res["ok"],
@@ -953,6 +963,13 @@ def check_print(res):
                     s["changes"], s["worst_ms"], s["worst_steps"], s["final"],
                     "; " + "; ".join(res["lines"]) if res["lines"] else "")))
     return out
+
+
+def summary_line(label, s):
+    """The run's last line for a print that passed: "firmware in the loop[ (label)]: N valve
+    changes, worst offset X ms, steps equal"."""
+    return "firmware in the loop%s: %d valve changes, worst offset %.3f ms, steps %s" % (
+        " (%s)" % label if label else "", s["changes"], abs(s["worst_ms"]), "equal" if s["steps_equal"] else "DIFFER")
 
 
 def check_watchdog_around_erases(b):
@@ -1111,17 +1128,28 @@ def run(image, args, log_dir, results):
     """Firmware in the loop: the print and the fault scenarios. Appends (name, ok, figure)."""
     machine = Machine(args.config, args.inset_mm)
     boards = []
-    summary = None
+    summaries = []
     try:
         rows = simulate(args, args.job, args.config, log_dir, "job")
         which = args.fil
         if "print" in which:
             res = scenario_print(image, args, log_dir, machine, boards, rows)
-            results.extend(check_print(res))
-            s = res["summary"]
-            if all(r[1] for r in results[-4:]):
-                summary = "firmware in the loop: %d valve changes, worst offset %.3f ms, steps %s" % (
-                    s["changes"], abs(s["worst_ms"]), "equal" if s["steps_equal"] else "DIFFER")
+            out = check_print(res)
+            results.extend(out)
+            if all(r[1] for r in out):
+                summaries.append(summary_line("", res["summary"]))
+            finish(boards)
+        if "serve" in which:
+            # The dashboard drives the board (emulator/serve.py); the same checks of the pins.
+            from emulator import serve
+            w0 = time.monotonic()
+            try:
+                out, summ = serve.scenario_serve(image, args, log_dir, machine, boards, rows)
+            except (FilError, E.TargetGone, RuntimeError, OSError) as e:
+                out, summ = [("dashboard drives the board", False, "error: %s" % e)], None
+            results.extend((n, ok, fig + " [%.0f s wall]" % (time.monotonic() - w0)) for n, ok, fig in out)
+            if summ is not None and all(r[1] for r in out):
+                summaries.append(summary_line("dashboard", summ))
             finish(boards)
         for name, fn in (("pause", lambda: scenario_pause(image, args, log_dir, machine, boards, rows)),
                          ("abort", lambda: scenario_abort(image, args, log_dir, machine, boards)),
@@ -1141,7 +1169,7 @@ def run(image, args, log_dir, results):
     finally:
         kill_hosts()
         finish(boards)
-    return summary
+    return "\n".join(summaries) or None
 
 
 def finish(boards):

@@ -59,6 +59,8 @@ impl Cancellable {
 
 /// What a cancelled upload says.
 const CANCELLED: &str = "upload cancelled by Abort";
+/// What a send says when an Abort came while the board homed before the job.
+const HOMING_CANCELLED: &str = "homing cancelled by Abort";
 
 impl Transport for Cancellable {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
@@ -682,7 +684,7 @@ impl Worker {
                 self.queue.retain(|e| e.id != entry.id);
                 Ok(m)
             }
-            Err(LinkError::Port(m)) if m == CANCELLED => {
+            Err(LinkError::Port(m)) if m == CANCELLED || m == HOMING_CANCELLED => {
                 self.queue.retain(|e| e.id != entry.id);
                 self.view.activity = "idle".into();
                 Err(format!(
@@ -741,7 +743,13 @@ impl Worker {
         self.view.seq = shown.seq;
         self.view.upload = None;
         self.view.commands = commands;
-        if !c.status()?.control.homed {
+        // The job printed before is gone from the board: its figures (progress 1.0 while
+        // the board still reports it Done) must not be shown for this one while it homes.
+        self.current = None;
+        let s = c.status()?;
+        // The page has shown the status from before the config was loaded: show this one.
+        self.show(&s);
+        if !s.control.homed {
             self.view.activity = "homing".into();
             self.publish_now();
             let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
@@ -749,7 +757,19 @@ impl Worker {
             let start = Instant::now();
             c.sleep(Duration::from_millis(5));
             loop {
+                // An Abort waits behind this order: homing takes tens of seconds on a
+                // real machine (7.5 s of wall time on the emulated board), so it is
+                // looked at here and ends the wait (the worker then aborts the board).
+                if self.cancel.load(Ordering::SeqCst) {
+                    return Err(LinkError::Port(HOMING_CANCELLED.into()));
+                }
+                let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
                 let s = c.status()?;
+                // Every poll is shown: the page's mode, position and update count move
+                // while the machine homes (they stood still for the whole homing).
+                self.show(&s);
+                self.view.activity = "homing".into();
+                self.publish_now();
                 match s.control.mode {
                     Mode::Idle => break,
                     Mode::Halted => {
@@ -764,8 +784,10 @@ impl Worker {
                         "homing did not finish in 5 minutes; check the endstops".into(),
                     ));
                 }
+                let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
                 c.sleep(Duration::from_millis(50));
             }
+            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
             if !c.status()?.control.homed {
                 return Err(LinkError::Protocol(
                     "homing did not finish; check the endstops".into(),
@@ -1005,6 +1027,64 @@ mod tests {
         // The plant's line fills and its flow follows; then the valve closes by itself.
         tick_until(&mut w, "flow", |v| v.flow > 0.1 && v.line_kpa[1] > 1.0);
         tick_until(&mut w, "the valve closing", |v| v.valves == 0);
+    }
+
+    #[test]
+    fn homing_before_a_job_is_shown_live_and_abort_ends_it_at_once() {
+        // Found driving the emulated firmware (scripts/emulate --fil serve): while the
+        // send order homed, the page kept the status from before the config was loaded
+        // (mode Unconfigured, the head at 0, the update count still) for the whole 7.5 s,
+        // and an Abort would have waited behind the homing (up to its 5 minute limit).
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let board = spawn(0, "sim".into(), "simulated".into(), None, 1.0);
+        rt.block_on(async {
+            let mut view = board.view.clone();
+            while !view.borrow().connected {
+                view.changed().await.expect("worker runs");
+            }
+            let b = board.clone();
+            let send = tokio::spawn(async move { b.order(Order::Send(chessboard())).await });
+            // The board's own Homing mode, then the head moving and the count going on.
+            // (Bounded: a page that never sees the mode would otherwise wait for ever.)
+            let homing = tokio::time::timeout(Duration::from_secs(30), async {
+                loop {
+                    view.changed().await.expect("worker runs");
+                    let v = view.borrow().clone();
+                    if v.activity == "homing" && v.mode == "Homing" {
+                        return (v.seq, v.position);
+                    }
+                    assert_ne!(v.activity, "printing", "homing was never shown: {v:?}");
+                }
+            });
+            let (seq0, pos0) = homing.await.expect("homing shown within 30 s");
+            let moved = loop {
+                view.changed().await.expect("worker runs");
+                let v = view.borrow().clone();
+                assert_eq!(v.activity, "homing", "homing ended before the test looked");
+                if v.seq >= seq0 + 3 && v.position != pos0 {
+                    break v;
+                }
+            };
+            assert_eq!(moved.progress, 0.0);
+            let t = Instant::now();
+            let aborted = board.abort().await;
+            let took = t.elapsed();
+            let sent = send.await.expect("joins");
+            eprintln!("abort while homing (updates {seq0}..{}): answered in {took:?}: {aborted:?}; the send: {sent:?}", moved.seq);
+            assert!(aborted.is_ok(), "{aborted:?}");
+            assert!(took < Duration::from_secs(1), "{took:?}");
+            let e = sent.expect_err("the homing was cancelled");
+            assert!(e.contains("homing cancelled by Abort"), "{e}");
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            let v = board.view.borrow().clone();
+            assert!(v.queue.is_empty(), "{:?}", v.queue);
+            assert_ne!(v.mode, "Homing");
+            assert_ne!(v.mode, "Job");
+            assert!(v.connected, "{:?}", v.message);
+        });
     }
 
     #[test]
