@@ -4,12 +4,13 @@
 //! through the file picker and sliced with its preview drawn, a simulation with its report
 //! and heatmap, a print on the simulated board followed to 100 % with the status pushed
 //! live (the flow shown being the reference plant's), pause, resume and abort, a second
-//! tab refused until it takes control, rheology, flow and lag calibrations applied to the
-//! config, a small 3MF dropped on the page (a synthetic drop event carrying the file)
-//! sliced and previewed, and a browser closed mid-print: a new session finds the print
-//! going on and follows it to the end. Saves screenshots of the main pages under the target
-//! directory (`tmp/serve-screenshots`). Without chromedriver it says it skipped, except in
-//! CI (`CI=true`), where that is a failure.
+//! tab refused until it takes control, rheology, flow, lag and camera calibrations applied
+//! to the config (the bundled frames through the file picker; a corrupt frame dropped on
+//! the page, a missing scale, more frames or bytes than the limits refused), a small 3MF dropped on the page (a synthetic drop event
+//! carrying the file) sliced and previewed, and a browser closed mid-print: a new session
+//! finds the print going on and follows it to the end. Saves screenshots of the main pages
+//! under the target directory (`tmp/serve-screenshots`). Without chromedriver it says it
+//! skipped, except in CI (`CI=true`), where that is a failure.
 
 use dollop_host::serve;
 use fantoccini::{Client, ClientBuilder, Locator};
@@ -720,6 +721,152 @@ async fn pages(c: &Client, base: &str) -> f64 {
         .to_string();
     click(c, "#cal-apply").await;
     wait_for(c, &format!("document.querySelector('.field[data-path=\"inlet[0].valve_open_delay_ms\"] input')?.value === '{delay}'"), 20, "the lag fragment in inlet 0").await;
+
+    // Camera frames: two dropped on the page (a drop event carrying the files), one of
+    // them corrupt, are refused naming it; then the bundled frames through the multiple
+    // picker (30 fps, 0.02 mm per pixel, a 1.2 mm line): a missing scale is refused, then
+    // the speed and width are those the command measures, and the head speed for the
+    // line is applied to [motion] of the config.
+    let frames_dir = data.join("camera");
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&frames_dir)
+        .expect("the bundled frames")
+        .map(|e| e.expect("a frame").path())
+        .collect();
+    frames.sort();
+    let b64 = {
+        use base64::Engine;
+        base64::engine::general_purpose::STANDARD
+            .encode(std::fs::read(&frames[0]).expect("a frame"))
+    };
+    js(c, &format!("(() => {{ const b = Uint8Array.from(atob('{b64}'), (ch) => ch.charCodeAt(0)); const dt = new DataTransfer(); dt.items.add(new File([b], 'a.png')); dt.items.add(new File(['not a picture'], 'b.png')); document.getElementById('cal-drop').dispatchEvent(new DragEvent('drop', {{ dataTransfer: dt, bubbles: true, cancelable: true }})); return true; }})()")).await;
+    assert_eq!(
+        js(c, "document.getElementById('cal-what').value").await,
+        json!("camera")
+    );
+    for (id, v) in [
+        ("cam-fps", "30"),
+        ("cam-mm_per_px", "0.02"),
+        ("cam-target_width", "1.2"),
+    ] {
+        c.find(Locator::Id(id))
+            .await
+            .unwrap_or_else(|e| panic!("no {id}: {e}"))
+            .send_keys(v)
+            .await
+            .expect("type");
+    }
+    click(c, "#cal-run").await;
+    let msg = wait_for(c, "!document.getElementById('cal-error').hidden && document.getElementById('cal-error').textContent", 30, "the corrupt frame's message").await;
+    let msg = msg.as_str().unwrap_or_default();
+    assert!(
+        msg.starts_with("b.png: ") && msg.contains("leave it out"),
+        "{msg}"
+    );
+    eprintln!("corrupt frame: {msg}");
+    js(
+        c,
+        "(document.getElementById('cal-frames').value = '', true)",
+    )
+    .await;
+    c.find(Locator::Id("cal-frames"))
+        .await
+        .expect("frame picker")
+        .send_keys(
+            &frames
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join("\n"),
+        )
+        .await
+        .expect("choosing the frames");
+    wait_for(
+        c,
+        "document.getElementById('cal-frames-list').textContent.startsWith('12 frames')",
+        10,
+        "the frames listed",
+    )
+    .await;
+    c.find(Locator::Id("cam-mm_per_px"))
+        .await
+        .expect("scale")
+        .clear()
+        .await
+        .expect("clear");
+    click(c, "#cal-run").await;
+    let msg = wait_for(c, "!document.getElementById('cal-error').hidden && document.getElementById('cal-error').textContent.includes('mm per pixel') && document.getElementById('cal-error').textContent", 30, "the missing scale's message").await;
+    eprintln!("missing scale: {msg}");
+    c.find(Locator::Id("cam-mm_per_px"))
+        .await
+        .expect("scale")
+        .send_keys("0.02")
+        .await
+        .expect("type");
+    click(c, "#cal-run").await;
+    let report = wait_for(c, "document.getElementById('cal-error').hidden && document.getElementById('cal-report').textContent.startsWith('camera: 12 frames') && document.getElementById('cal-plot').complete && document.getElementById('cal-plot').naturalWidth > 100 && document.getElementById('cal-report').textContent", 60, "the camera figures and plot").await;
+    let report = report.as_str().unwrap_or_default();
+    // Rendered at 4.5 px/frame and 48 px: 2.7 mm/s and 0.96 mm, as the command finds.
+    assert!(
+        report.contains("V_ex = 2.70") && report.contains("D_ex = 0.96"),
+        "{report}"
+    );
+    let frag = js(c, "document.getElementById('cal-fragment').textContent").await;
+    let speed = frag
+        .as_str()
+        .unwrap_or_default()
+        .lines()
+        .find_map(|l| l.strip_prefix("print_speed_mm_s = "))
+        .unwrap_or_else(|| panic!("no print speed in {frag}"))
+        .trim()
+        .to_string();
+    eprintln!("camera: {report}print_speed_mm_s = {speed}");
+    // The lag's toast would cover the plot.
+    js(
+        c,
+        "(window.scrollTo(0, 0), document.getElementById('toast').hidden = true, true)",
+    )
+    .await;
+    shot(c, "calibrate-camera.png").await;
+    click(c, "#cal-apply").await;
+    wait_for(c, &format!("document.querySelector('.field[data-path=\"motion.print_speed_mm_s\"] input')?.value === '{speed}'"), 20, "the camera fragment in [motion]").await;
+    let toast = js(c, "document.getElementById('toast').textContent").await;
+    assert!(
+        toast
+            .as_str()
+            .unwrap_or_default()
+            .contains("motion.print_speed_mm_s"),
+        "{toast}"
+    );
+
+    // Straight to the server, past the page's own checks: one frame over the count limit
+    // is refused when it arrives, and frames over the byte limit get the frames' message.
+    let post = |files: &str| {
+        format!("(window.camPost = null, (async () => {{ const f = new FormData(); {files}; f.append('fps', '30'); f.append('mm_per_px', '0.02'); try {{ const r = await fetch('/api/calibrate/camera', {{ method: 'POST', body: f }}); window.camPost = [r.status, (await r.json()).error]; }} catch (e) {{ window.camPost = [0, String(e)]; }} }})(), true)")
+    };
+    js(c, &post("for (let i = 0; i <= 2000; i++) f.append('frames', new File([new Uint8Array(8)], `f${String(i).padStart(4, '0')}.png`))")).await;
+    let v = wait_for(c, "window.camPost", 60, "the answer to 2001 frames").await;
+    eprintln!("2001 frames: {v}");
+    assert_eq!(v[0], json!(400), "{v}");
+    assert!(
+        v[1].as_str()
+            .unwrap_or_default()
+            .starts_with("more than 2000 frames"),
+        "{v}"
+    );
+    js(
+        c,
+        &post("f.append('frames', new File([new Uint8Array(65 * 1024 * 1024)], 'big.png'))"),
+    )
+    .await;
+    let v = wait_for(c, "window.camPost", 60, "the answer to 65 MiB of frames").await;
+    eprintln!("65 MiB of frames: {v}");
+    assert_eq!(v[0], json!(413), "{v}");
+    assert!(
+        v[1].as_str()
+            .unwrap_or_default()
+            .contains("the frames are larger than the 64 MiB"),
+        "{v}"
+    );
 
     // Board 1 prints the chessboard; the browser is closed mid-print by the caller.
     click(c, "#nav-print").await;

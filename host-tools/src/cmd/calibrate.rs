@@ -135,7 +135,8 @@ struct LagArgs {
     output: Output,
 }
 
-fn parse_roi(s: &str) -> Result<Roi, String> {
+/// `X,Y,W,H` in whole pixels, as `--roi` takes it (the dashboard's field too).
+pub fn parse_roi(s: &str) -> Result<Roi, String> {
     let v: Vec<u32> = s
         .split(',')
         .map(|p| p.trim().parse::<u32>())
@@ -148,8 +149,9 @@ fn parse_roi(s: &str) -> Result<Roi, String> {
 }
 
 /// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
-/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away).
-fn parse_window(s: &str) -> Result<usize, String> {
+/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away). The
+/// dashboard's field is checked by this too.
+pub fn parse_window(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
         Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
         _ => Err(format!(

@@ -1,7 +1,8 @@
 //! The dashboard's HTTP API and pages: the router, and thin handlers that parse the
-//! request, hand the work to `design`, `simulate` or a board's worker (blocking work off
-//! the async threads), and answer JSON, files, or server-sent events (simulation progress,
-//! board status ten times a second). Every failure is an `ApiError` the page shows.
+//! request, hand the work to `design`, `simulate`, `calibrate` or a board's worker
+//! (blocking work off the async threads), and answer JSON, files, or server-sent events
+//! (simulation progress, board status ten times a second). Every failure is an `ApiError`
+//! the page shows.
 
 use super::assets;
 use super::boards::{Fallback, Order, View};
@@ -62,6 +63,8 @@ async fn info(State(st): St) -> Json<serde_json::Value> {
         "configs": st.configs.iter().map(|c| c.name.clone()).collect::<Vec<_>>(),
         "designs": design::DESIGNS.iter().map(|d| d.0).collect::<Vec<_>>(),
         "max_upload_mb": super::MAX_UPLOAD >> 20,
+        "camera_max_frames": super::calibrate::CAMERA_LIMITS.max_frames,
+        "camera_max_pixels": super::calibrate::CAMERA_LIMITS.max_pixels,
         "demo_job": st.demo_job,
         "boards": st.boards.len(),
     }))
@@ -543,44 +546,89 @@ async fn board_action(
     }
 }
 
+/// The Design page's config sent with a calibration (flow, camera), checked; none when
+/// the page sent none.
+fn design_config(text: Option<&str>) -> ApiResult<Option<dollop::config::Config>> {
+    match text.filter(|t| !t.trim().is_empty()) {
+        Some(t) => Ok(Some(
+            design::check(t)
+                .map_err(|e| {
+                    ApiError::bad(format!(
+                        "the Design page's config does not check ({}); fix it there first",
+                        e.error
+                    ))
+                })?
+                .config,
+        )),
+        None => Ok(None),
+    }
+}
+
 async fn calibrate(
     Path(what): Path<String>,
     mut mp: Multipart,
 ) -> ApiResult<Json<super::calibrate::Shown>> {
+    use super::calibrate::{CameraForm, CAMERA_LIMITS};
     let mut data = None;
     let (mut kind, mut inlet, mut config, mut density) =
         (String::new(), String::new(), None, String::new());
-    while let Some(field) = mp.next_field().await? {
-        match field.name().unwrap_or("") {
-            "data" => {
-                let name = field.file_name().unwrap_or("data.csv").to_string();
-                data = Some((name, field.bytes().await?.to_vec()));
+    let mut frames: Vec<Upload> = Vec::new();
+    let mut cam = CameraForm::default();
+    let read = async {
+        while let Some(field) = mp.next_field().await? {
+            match field.name().unwrap_or("") {
+                "data" => {
+                    let name = field.file_name().unwrap_or("data.csv").to_string();
+                    data = Some((name, field.bytes().await?.to_vec()));
+                }
+                "frames" => {
+                    // Past the limit the rest is not read: the refusal comes at once.
+                    if frames.len() >= CAMERA_LIMITS.max_frames {
+                        return Err(super::calibrate::too_many_frames(CAMERA_LIMITS.max_frames));
+                    }
+                    let name = field.file_name().unwrap_or("frame").to_string();
+                    let bytes = field.bytes().await?.to_vec();
+                    frames.push(Upload { name, bytes });
+                }
+                "kind" => kind = field.text().await?,
+                "inlet" => inlet = field.text().await?,
+                "config" => config = Some(field.text().await?),
+                "density" => density = field.text().await?,
+                "fps" => cam.fps = field.text().await?,
+                "mm_per_px" => cam.mm_per_px = field.text().await?,
+                "target_width" => cam.target_width = field.text().await?,
+                "nozzle" => cam.nozzle = field.text().await?,
+                "roi" => cam.roi = field.text().await?,
+                "window" => cam.window = field.text().await?,
+                _ => {}
             }
-            "kind" => kind = field.text().await?,
-            "inlet" => inlet = field.text().await?,
-            "config" => config = Some(field.text().await?),
-            "density" => density = field.text().await?,
-            _ => {}
         }
+        Ok::<(), ApiError>(())
+    }
+    .await;
+    if let Err(e) = read {
+        // Frames over the byte limit: say what to do with frames, not with a design.
+        return Err(
+            if what == "camera" && e.status == axum::http::StatusCode::PAYLOAD_TOO_LARGE {
+                super::calibrate::frames_too_large()
+            } else {
+                e
+            },
+        );
+    }
+    if what == "camera" {
+        let config = design_config(config.as_deref())?;
+        return Ok(Json(
+            blocking(move || super::calibrate::camera(&frames, &cam, config, CAMERA_LIMITS))
+                .await?,
+        ));
     }
     let (name, bytes) = data.ok_or_else(|| ApiError::bad("choose a measurement CSV"))?;
     Ok(Json(match what.as_str() {
         "rheology" => blocking(move || super::calibrate::rheology(&name, &bytes, &kind)).await?,
         "lag" => blocking(move || super::calibrate::lag(&name, &bytes, &inlet)).await?,
         "flow" => {
-            let config = match config.as_deref().filter(|t| !t.trim().is_empty()) {
-                Some(t) => Some(
-                    design::check(t)
-                        .map_err(|e| {
-                            ApiError::bad(format!(
-                                "the Design page's config does not check ({}); fix it there first",
-                                e.error
-                            ))
-                        })?
-                        .config,
-                ),
-                None => None,
-            };
+            let config = design_config(config.as_deref())?;
             let density = match density.trim() {
                 "" => None,
                 d => Some(d.parse::<f64>().map_err(|_| {
@@ -591,7 +639,7 @@ async fn calibrate(
         }
         other => {
             return Err(ApiError::missing(format!(
-                "no calibration {other:?}: rheology, flow or lag"
+                "no calibration {other:?}: rheology, flow, lag or camera"
             )))
         }
     }))

@@ -7,7 +7,9 @@ use super::super::CalError;
 use image::GrayImage;
 use std::path::{Path, PathBuf};
 
-const EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "bmp"];
+/// The extensions of the files read as frames (any case); others in the folder are passed
+/// over.
+pub const EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "bmp"];
 
 /// How much of a frame folder is read. Frames are held decoded (one byte a pixel) with
 /// their pyramids and edges, and both memory and time grow with the pixels: ten 1280 x 960

@@ -79,14 +79,17 @@ function setFiles(list) {
   ul.replaceChildren(...app.files.map((f, i) => el("li", {}, `${f.name} (${(f.size / 1024).toFixed(1)} KiB)` + (app.files.length > 1 ? ` → inlet ${i}` : ""))));
 }
 $("design-files").addEventListener("change", (e) => setFiles(e.target.files));
-const drop = $("drop");
-drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
-drop.addEventListener("dragleave", () => drop.classList.remove("over"));
-drop.addEventListener("drop", (e) => {
-  e.preventDefault();
-  drop.classList.remove("over");
-  if (e.dataTransfer.files.length) setFiles(e.dataTransfer.files);
-});
+// Files dragged from the desktop onto `zone` go to `take` (the designs, the camera frames).
+function dropZone(zone, take) {
+  zone.addEventListener("dragover", (e) => { e.preventDefault(); zone.classList.add("over"); });
+  zone.addEventListener("dragleave", () => zone.classList.remove("over"));
+  zone.addEventListener("drop", (e) => {
+    e.preventDefault();
+    zone.classList.remove("over");
+    if (e.dataTransfer.files.length) take(e.dataTransfer.files);
+  });
+}
+dropZone($("drop"), setFiles);
 
 async function useBundled(names) {
   const files = [];
@@ -657,37 +660,75 @@ function followBoards() {
 
 // ---------------------------------------------------------------- calibrate
 let calFragment = null;
+let calFrames = [];  // File objects chosen as camera frames, in file-name order
 $("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
 function calWhatChanged() {
   const what = $("cal-what").value;
-  for (const e of document.querySelectorAll("#page-calibrate [data-for]")) e.hidden = e.dataset.for !== what;
+  for (const e of document.querySelectorAll("#page-calibrate [data-for]")) e.hidden = !e.dataset.for.split(" ").includes(what);
+  $("cal-name").hidden = what === "camera";
 }
 $("cal-what").addEventListener("change", calWhatChanged);
+// The server takes the frames in file-name order: list them so.
+function setFrames(list) {
+  calFrames = Array.from(list).sort((a, b) => (a.name < b.name ? -1 : a.name > b.name ? 1 : 0));
+  const bytes = calFrames.reduce((s, f) => s + f.size, 0);
+  const names = calFrames.length > 4 ? [calFrames[0].name, "…", calFrames[calFrames.length - 1].name] : calFrames.map((f) => f.name);
+  $("cal-frames-list").textContent = calFrames.length ? `${calFrames.length} frame${calFrames.length > 1 ? "s" : ""} (${(bytes / 1048576).toFixed(2)} MiB): ${names.join(" ")}` : "";
+}
+$("cal-frames").addEventListener("change", (e) => setFrames(e.target.files));
+dropZone($("cal-drop"), (files) => {
+  $("cal-what").value = "camera";
+  calWhatChanged();
+  setFrames(files);
+});
+// The camera's fields, by the name the server reads them under.
+const CAM_FIELDS = ["fps", "mm_per_px", "target_width", "nozzle", "roi", "window"];
+function cameraForm(form) {
+  if (!calFrames.length) throw new Error("Choose the frames first (or drop them on the page): two or more side views of the filament.");
+  // Said here before sending what the server would refuse after the upload.
+  const mb = app.info ? app.info.max_upload_mb : 64;
+  const bytes = calFrames.reduce((s, f) => s + f.size, 0);
+  if (bytes > mb * 1048576) throw new Error(`The frames are ${(bytes / 1048576).toFixed(1)} MiB together, over the ${mb} MiB one upload takes: send fewer frames, or crop them to the filament.`);
+  const max = app.info ? app.info.camera_max_frames : 2000;
+  if (calFrames.length > max) throw new Error(`${calFrames.length} frames: the dashboard fits at most ${max} at a time; send fewer (every other frame halves them: give half the fps then).`);
+  for (const f of calFrames) form.append("frames", f, f.name);
+  for (const k of CAM_FIELDS) form.append(k, $("cam-" + k).value);
+}
 $("cal-run").addEventListener("click", async () => {
   showError("cal-error", "");
-  const f = $("cal-file").files[0];
-  if (!f) return showError("cal-error", "Choose a measurement CSV first.");
   const what = $("cal-what").value;
   const form = new FormData();
-  form.append("data", f, f.name);
-  form.append("kind", $("cal-kind").value);
-  form.append("inlet", $("cal-lag-inlet").value);
-  form.append("density", $("cal-density").value);
-  // Flow is fitted in the channel of the Design page's config (for the fragment).
-  if (what === "flow" && app.config) form.append("config", app.config.text);
+  if (what === "camera") {
+    try { cameraForm(form); } catch (e) { return showError("cal-error", e.message); }
+  } else {
+    const f = $("cal-file").files[0];
+    if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+    form.append("data", f, f.name);
+    form.append("kind", $("cal-kind").value);
+    form.append("inlet", $("cal-lag-inlet").value);
+    form.append("density", $("cal-density").value);
+  }
+  // Flow is fitted in the channel of the Design page's config (for the fragment); the
+  // camera takes its nozzle bore and print-speed cap.
+  if ((what === "flow" || what === "camera") && app.config) form.append("config", app.config.text);
+  const run = $("cal-run");
+  run.disabled = true;
   try {
     const r = await api(`/api/calibrate/${what}`, { method: "POST", body: form });
     $("cal-report").textContent = r.report;
     calFragment = r.fragment;
-    $("cal-fragment").textContent = r.fragment || "(no fragment: see the verdicts)";
+    $("cal-fragment").textContent = r.fragment || (what === "camera" ? "(no fragment: give the target line width for the head speed to write)" : "(no fragment: see the verdicts)");
     $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
   } catch (e) {
     showError("cal-error", e.message);
+  } finally {
+    run.disabled = false;
   }
 });
-// The fragment's `key = value` lines become edits of that inlet in the config editor; a
-// fragment of several [[inlet]] tables (flow: one per material) fills that inlet and the
-// next ones.
+// The fragment's `key = value` lines become edits in the config editor: keys before any
+// table go to the chosen inlet; a fragment of several [[inlet]] tables (flow: one per
+// material) fills that inlet and the next ones; keys under [motion] (camera: the print
+// speed) are that table's.
 $("cal-apply").addEventListener("click", async () => {
   if (!calFragment || !app.config) return showError("cal-error", "Fit a measurement first.");
   const first = Number($("cal-inlet").value);
@@ -695,19 +736,25 @@ $("cal-apply").addEventListener("click", async () => {
   const edits = [];
   const tables = calFragment.split("\n").some((l) => l.trim() === "[[inlet]]");
   if (!tables) inlet = first;
+  let table = null;
   for (const l of calFragment.split("\n")) {
     const t = l.trim();
-    if (t === "[[inlet]]") { inlet += 1; continue; }
+    if (t === "[[inlet]]") { inlet += 1; table = null; continue; }
+    const header = t.match(/^\[([a-z_]+)\]$/);
+    if (header) { table = header[1]; continue; }
     if (!t.includes("=") || t.startsWith("#")) continue;
     const i = t.indexOf("=");
-    edits.push({ path: `inlet[${inlet}].${t.slice(0, i).trim()}`, raw: t.slice(i + 1).trim() });
+    const key = t.slice(0, i).trim();
+    edits.push({ path: table ? `${table}.${key}` : `inlet[${inlet}].${key}`, raw: t.slice(i + 1).trim() });
   }
   if (!edits.length) return showError("cal-error", "This fragment has nothing to apply (see its comments).");
   try {
     const c = await postJson("/api/config/check", { text: app.config.text, edits });
     renderConfig(c);
     clearFieldErrors();
-    toast(inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
+    const onInlets = edits.filter((e) => e.path.startsWith("inlet[")).length;
+    toast(!onInlets ? `Applied ${edits.map((e) => `${e.path} = ${e.raw}`).join(", ")}; the config on the Design page now uses it.`
+      : inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
   } catch (e) {
     showError("cal-error", e.message);
   }
@@ -720,7 +767,9 @@ $("cal-apply").addEventListener("click", async () => {
   } catch (e) {
     return toast(e.message, true);
   }
-  $("max-upload").textContent = app.info.max_upload_mb;
+  for (const e of document.querySelectorAll(".max-upload")) e.textContent = app.info.max_upload_mb;
+  $("cam-max-frames").textContent = app.info.camera_max_frames;
+  $("cam-max-pixels").textContent = app.info.camera_max_pixels / 1e6;
   const sel = $("config-select");
   app.info.configs.forEach((n, i) => sel.append(el("option", { value: String(i) }, n)));
   const bundled = $("bundled");
