@@ -1124,6 +1124,41 @@ def scenario_flipped(image, args, log_dir, machine, boards):
                  len(enabled)))]
 
 
+# QEMU 7.2's own assertion, hit now and then by -icount with debugger watchpoints at a
+# watched store: the emulator stops, not the firmware.
+QEMU_ICOUNT_ABORT = "Raised interrupt while not in I/O function"
+
+
+def qemu_aborted(boards):
+    """True when a board's QEMU stopped on its own icount assertion."""
+    for b in boards:
+        try:
+            b.emu.qemu_log.flush()
+            with open(b.emu.qemu_log.name) as f:
+                if QEMU_ICOUNT_ABORT in f.read():
+                    return True
+        except (OSError, ValueError):
+            pass
+    return False
+
+
+def once_more_if_qemu_aborted(name, boards, attempt, failed=lambda r: False):
+    """Runs `attempt()`; if it raised or `failed(result)` because QEMU aborted on its own
+    assertion (not anything the firmware did), says so and runs it once more. A second
+    such abort, or any other failure, stands."""
+    try:
+        r = attempt()
+        if not (failed(r) and qemu_aborted(boards)):
+            return r
+    except (FilError, E.TargetGone, RuntimeError, OSError):
+        if not qemu_aborted(boards):
+            raise
+    print("emulate: %s: QEMU itself aborted (\"%s\"), not the firmware: running it once more"
+          % (name, QEMU_ICOUNT_ABORT), file=sys.stderr, flush=True)
+    finish(boards)
+    return attempt()
+
+
 def run(image, args, log_dir, results):
     """Firmware in the loop: the print and the fault scenarios. Appends (name, ok, figure)."""
     machine = Machine(args.config, args.inset_mm)
@@ -1133,7 +1168,9 @@ def run(image, args, log_dir, results):
         rows = simulate(args, args.job, args.config, log_dir, "job")
         which = args.fil
         if "print" in which:
-            res = scenario_print(image, args, log_dir, machine, boards, rows)
+            res = once_more_if_qemu_aborted(
+                "print", boards, lambda: scenario_print(image, args, log_dir, machine, boards, rows),
+                failed=lambda r: not r["ok"])
             out = check_print(res)
             results.extend(out)
             if all(r[1] for r in out):
@@ -1144,7 +1181,9 @@ def run(image, args, log_dir, results):
             from emulator import serve
             w0 = time.monotonic()
             try:
-                out, summ = serve.scenario_serve(image, args, log_dir, machine, boards, rows)
+                out, summ = once_more_if_qemu_aborted(
+                    "serve", boards, lambda: serve.scenario_serve(image, args, log_dir, machine, boards, rows),
+                    failed=lambda r: not all(ok for _, ok, _ in r[0]))
             except (FilError, E.TargetGone, RuntimeError, OSError) as e:
                 out, summ = [("dashboard drives the board", False, "error: %s" % e)], None
             results.extend((n, ok, fig + " [%.0f s wall]" % (time.monotonic() - w0)) for n, ok, fig in out)
@@ -1159,7 +1198,8 @@ def run(image, args, log_dir, results):
             if name in which:
                 w0 = time.monotonic()
                 try:
-                    out = fn()
+                    out = once_more_if_qemu_aborted(name, boards, fn,
+                                                    failed=lambda r: not all(ok for _, ok, _ in r))
                 except (FilError, E.TargetGone, RuntimeError, OSError) as e:
                     out = [(name, False, "error: %s" % e)]
                 results.extend((n, ok, fig + " [%.0f s wall]" % (time.monotonic() - w0)) for n, ok, fig in out)

@@ -276,6 +276,18 @@ pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
 }
 
 fn spawn(id: usize, name: String, port: String, path: Option<String>, speed: f64) -> Arc<Board> {
+    spawn_with(id, name, port, path, speed, Duration::ZERO)
+}
+
+/// `spawn`, with the simulated board's link delaying each frame by `frame_delay`.
+fn spawn_with(
+    id: usize,
+    name: String,
+    port: String,
+    path: Option<String>,
+    speed: f64,
+    frame_delay: Duration,
+) -> Arc<Board> {
     let (tx, rx) = mpsc::channel();
     let view = View {
         id,
@@ -296,7 +308,11 @@ fn spawn(id: usize, name: String, port: String, path: Option<String>, speed: f64
     });
     let spawned = std::thread::Builder::new()
         .name(format!("board-{id}"))
-        .spawn(move || Worker::new(path, speed, view, vtx, cancel).run(rx));
+        .spawn(move || {
+            let mut w = Worker::new(path, speed, view, vtx, cancel);
+            w.frame_delay = frame_delay;
+            w.run(rx)
+        });
     if let Err(e) = spawned {
         eprintln!("dollop serve: cannot start the worker of board {id}: {e}");
     }
@@ -329,6 +345,8 @@ struct Worker {
     /// The simulated board's plant is built from this instead of the loaded config (a
     /// machine that differs from its config; tests).
     plant_config: Option<dollop::config::Config>,
+    /// The simulated board's link delays each frame this long (tests; see `SimLink`).
+    frame_delay: Duration,
 }
 
 fn mode_words(s: &Status) -> Option<String> {
@@ -366,6 +384,7 @@ impl Worker {
             valve_close: None,
             next_connect: Instant::now(),
             plant_config: None,
+            frame_delay: Duration::ZERO,
         }
     }
 
@@ -388,7 +407,11 @@ impl Worker {
         }
         self.view.activity = "connecting".into();
         let opened = match &self.path {
-            None => Ok((Link::Sim(Box::new(SimLink::new(self.speed))), mem_options())),
+            None => {
+                let mut link = SimLink::new(self.speed);
+                link.frame_delay = self.frame_delay;
+                Ok((Link::Sim(Box::new(link)), mem_options()))
+            }
             Some(p) => SerialLink::open(Some(p)).map(|l| (Link::Serial(l), Options::default())),
         };
         let cancel = self.cancel.clone();
@@ -1093,14 +1116,15 @@ mod tests {
             .enable_all()
             .build()
             .expect("runtime");
-        // A bigger job (the logo 40 mm wide), on a board at the wall clock's pace.
+        // A bigger job (the logo 120 mm wide, some 40 frames: more than the link's window
+        // of 8), on a board at the wall clock's pace.
         let checked = design::check(design::BUNDLED[0].1).expect("config");
         let uploads = [design::Upload {
             name: "logo.png".into(),
             bytes: design::DESIGNS[0].1.to_vec(),
         }];
         let form = design::SliceForm {
-            width_mm: Some(40.0),
+            width_mm: Some(120.0),
             ..Default::default()
         };
         let sliced = design::slice(&uploads, &checked.config, &form).expect("slices");
@@ -1112,7 +1136,17 @@ mod tests {
             config_text: checked.text,
             sliced,
         });
-        let board = spawn(0, "sim".into(), "simulated".into(), None, 1.0);
+        // Each frame 40 ms on its way: the upload lasts long enough to be seen under way
+        // however loaded the machine is (at full speed it can end between two looks, and
+        // the loop below would then wait on a print).
+        let board = spawn_with(
+            0,
+            "sim".into(),
+            "simulated".into(),
+            None,
+            1.0,
+            Duration::from_millis(40),
+        );
         rt.block_on(async {
             let mut view = board.view.clone();
             while !view.borrow().connected {
@@ -1120,15 +1154,24 @@ mod tests {
             }
             let b = board.clone();
             let send = tokio::spawn(async move { b.order(Order::Send(entry)).await });
-            let total = loop {
-                view.changed().await.expect("worker runs");
-                if let Some((acked, total)) = view.borrow().upload {
-                    if acked > 0 {
-                        assert!(acked < total, "the upload ended before the abort");
-                        break total;
+            let seen = tokio::time::timeout(Duration::from_secs(120), async {
+                loop {
+                    view.changed().await.expect("worker runs");
+                    let v = view.borrow().clone();
+                    if let Some((acked, total)) = v.upload {
+                        if acked > 0 {
+                            assert!(acked < total, "the upload ended before the abort");
+                            return total;
+                        }
                     }
+                    assert!(
+                        v.upload.is_some() || v.activity == "uploading" || v.mode != "Job",
+                        "the upload ended unseen: {v:?}"
+                    );
                 }
-            };
+            })
+            .await;
+            let total = seen.expect("the upload was never seen under way in 120 s");
             let t = Instant::now();
             let aborted = board.abort().await;
             let took = t.elapsed();

@@ -45,6 +45,9 @@ pub struct SimLink {
     /// Wall time and board time at the last re-anchor.
     anchor: (Instant, Duration),
     plant: Option<Coupled>,
+    /// Wall time each frame sent takes on its way (zero: none). Stands in for a slow link,
+    /// so a test can catch an upload while it is under way.
+    pub frame_delay: Duration,
 }
 
 impl SimLink {
@@ -58,6 +61,7 @@ impl SimLink {
             speed,
             anchor: (Instant::now(), now),
             plant: None,
+            frame_delay: Duration::ZERO,
         }
     }
 
@@ -150,6 +154,9 @@ impl Coupled {
 
 impl Transport for SimLink {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        if !self.frame_delay.is_zero() {
+            std::thread::sleep(self.frame_delay);
+        }
         self.inner.send(bytes)
     }
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
