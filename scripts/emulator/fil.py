@@ -1142,6 +1142,11 @@ def qemu_aborted(boards):
     return False
 
 
+def passed(out):
+    """Every (name, ok, figure) check of a scenario passed."""
+    return all(ok for _, ok, _ in out)
+
+
 def once_more_if_qemu_aborted(name, boards, attempt, failed=lambda r: False):
     """Runs `attempt()`; if it raised or `failed(result)` because QEMU aborted on its own
     assertion (not anything the firmware did), says so and runs it once more. A second
@@ -1173,7 +1178,7 @@ def run(image, args, log_dir, results):
                 failed=lambda r: not r["ok"])
             out = check_print(res)
             results.extend(out)
-            if all(r[1] for r in out):
+            if passed(out):
                 summaries.append(summary_line("", res["summary"]))
             finish(boards)
         if "serve" in which:
@@ -1183,11 +1188,11 @@ def run(image, args, log_dir, results):
             try:
                 out, summ = once_more_if_qemu_aborted(
                     "serve", boards, lambda: serve.scenario_serve(image, args, log_dir, machine, boards, rows),
-                    failed=lambda r: not all(ok for _, ok, _ in r[0]))
+                    failed=lambda r: not passed(r[0]))
             except (FilError, E.TargetGone, RuntimeError, OSError) as e:
                 out, summ = [("dashboard drives the board", False, "error: %s" % e)], None
             results.extend((n, ok, fig + " [%.0f s wall]" % (time.monotonic() - w0)) for n, ok, fig in out)
-            if summ is not None and all(r[1] for r in out):
+            if summ is not None and passed(out):
                 summaries.append(summary_line("dashboard", summ))
             finish(boards)
         for name, fn in (("pause", lambda: scenario_pause(image, args, log_dir, machine, boards, rows)),
@@ -1198,8 +1203,7 @@ def run(image, args, log_dir, results):
             if name in which:
                 w0 = time.monotonic()
                 try:
-                    out = once_more_if_qemu_aborted(name, boards, fn,
-                                                    failed=lambda r: not all(ok for _, ok, _ in r))
+                    out = once_more_if_qemu_aborted(name, boards, fn, failed=lambda r: not passed(r))
                 except (FilError, E.TargetGone, RuntimeError, OSError) as e:
                     out = [(name, False, "error: %s" % e)]
                 results.extend((n, ok, fig + " [%.0f s wall]" % (time.monotonic() - w0)) for n, ok, fig in out)

@@ -1116,8 +1116,8 @@ mod tests {
             .enable_all()
             .build()
             .expect("runtime");
-        // A bigger job (the logo 120 mm wide, some 40 frames: more than the link's window
-        // of 8), on a board at the wall clock's pace.
+        // A bigger job (the logo 120 mm wide: 4 166 bytes, 17 frames, more than the link's
+        // window of 8), on a board at the wall clock's pace.
         let checked = design::check(design::BUNDLED[0].1).expect("config");
         let uploads = [design::Upload {
             name: "logo.png".into(),
