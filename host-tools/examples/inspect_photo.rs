@@ -70,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (deposit, _) = synth::deposit(&config, &plant, &job, frame)?;
     let cam = Camera {
-        size: (1000, 750),
+        size: (1600, 1200),
         seed: 12,
         ..Default::default()
     };

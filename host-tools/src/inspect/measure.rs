@@ -393,6 +393,10 @@ pub struct Drift {
     pub k: [[f64; 3]; 2],
     /// Centre it is taken about, mm.
     pub c: [f64; 2],
+    /// Per axis: boundaries run along it but nothing measured a shift along it (every
+    /// switch direction runs one way along it, and no beads' sides face it), so the
+    /// offsets along it keep whatever shift the registration left.
+    pub unpinned: [bool; 2],
 }
 
 impl Drift {
@@ -415,8 +419,9 @@ impl Drift {
 /// boundary along its bead the same way whichever way the bead runs; a misregistered
 /// photo moves it along a fixed direction on the plate, so beads running opposite ways
 /// see it with opposite signs. Fitting each switch direction's own offset plus a
-/// displacement field seen through each bead's direction separates the two. Only the axes
-/// along which every switch direction has beads running both ways are fitted.
+/// displacement field seen through each bead's direction separates the two, wholly along
+/// an axis where some switch direction has beads running both ways along it, and in how it
+/// changes across the print where none has.
 ///
 /// The beads' sides (`edges`) add what the path cannot: a displacement across the beads,
 /// read on its own (no switch direction's offset in it). Sides that a bead narrower or
@@ -432,9 +437,10 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
         plan.beads[b.bead].at(b.s).1
     };
     let both_ways = |axis: usize| {
-        kinds.iter().all(|&k| {
+        kinds.iter().any(|&k| {
             let of_kind = || found.iter().filter(|f| kind(f) == k);
-            of_kind().any(|f| dir(f)[axis] > 0.5) && of_kind().any(|f| dir(f)[axis] < -0.5)
+            of_kind().filter(|f| dir(f)[axis] > 0.5).count() >= 2
+                && of_kind().filter(|f| dir(f)[axis] < -0.5).count() >= 2
         })
     };
     // An axis is also seen from the sides of beads running across it, on both sides.
@@ -442,7 +448,19 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
         edges.iter().filter(|e| e.n[axis] > 0.5).count() >= 8
             && edges.iter().filter(|e| e.n[axis] < -0.5).count() >= 8
     };
-    let axes: Vec<usize> = (0..2).filter(|&a| both_ways(a) || sides(a)).collect();
+    // The field's terms fitted, (axis, term): all three where the axis is seen from both
+    // ways or from the sides; where every switch direction runs one way along it (a
+    // chessboard of three or more materials in a boustrophedon ties each switch to one
+    // way), a shift along it looks exactly like each switch direction's own offset, so
+    // only how the field changes across the print (its dx and dy terms) is fitted.
+    let mut cols: Vec<(usize, usize)> = Vec::new();
+    for a in 0..2 {
+        if both_ways(a) || sides(a) {
+            cols.extend((0..3).map(|t| (a, t)));
+        } else if found.iter().filter(|f| dir(f)[a].abs() > 0.5).count() >= 8 {
+            cols.extend((1..3).map(|t| (a, t)));
+        }
+    }
     let n = found.len();
     let mut c = [0.0; 2];
     for f in found {
@@ -458,15 +476,19 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
     }
     let out = Drift {
         c,
+        unpinned: std::array::from_fn(|a| {
+            !cols.contains(&(a, 0)) && found.iter().any(|f| dir(f)[a].abs() > 0.5)
+        }),
         ..Default::default()
     };
-    let terms = 3;
-    let unknowns = kinds.len() + terms * axes.len();
-    if axes.is_empty() || n + edges.len() < unknowns + 3 {
+    let unknowns = kinds.len() + cols.len();
+    if cols.is_empty() || n + edges.len() < unknowns + 3 {
         return out;
     }
     // Rows: the found boundaries (a switch direction's offset plus the field along the
-    // path), then the sides kept (the field along their normal).
+    // path), then the sides kept (the field along their normal). `None` when the rows do
+    // not determine every unknown (the least-norm answer would then move the field by
+    // whatever made the switch directions' offsets smallest).
     let solve = |keep: &[bool]| -> Option<nalgebra::DVector<f64>> {
         let rows = n + keep.iter().filter(|&&k| k).count();
         let mut m = nalgebra::DMatrix::<f64>::zeros(rows, unknowns);
@@ -478,10 +500,8 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
             let k = kinds.iter().position(|&k| k == kind(f)).unwrap_or(0);
             m[(i, k)] = 1.0;
             let basis = basis(b.at);
-            for (j, &a) in axes.iter().enumerate() {
-                for t in 0..terms {
-                    m[(i, kinds.len() + terms * j + t)] = u[a] * basis[t];
-                }
+            for (j, &(a, t)) in cols.iter().enumerate() {
+                m[(i, kinds.len() + j)] = u[a] * basis[t];
             }
             y[i] = f.offset;
         }
@@ -493,21 +513,22 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
             .enumerate()
         {
             let basis = basis(e.at);
-            for (j, &a) in axes.iter().enumerate() {
-                for t in 0..terms {
-                    m[(n + i, kinds.len() + terms * j + t)] = e.n[a] * basis[t];
-                }
+            for (j, &(a, t)) in cols.iter().enumerate() {
+                m[(n + i, kinds.len() + j)] = e.n[a] * basis[t];
             }
             y[n + i] = e.d;
         }
-        m.svd(true, true).solve(&y, 1e-9).ok()
+        let svd = m.svd(true, true);
+        let sv = &svd.singular_values;
+        if sv.min() <= 1e-9 * sv.max() {
+            return None;
+        }
+        svd.solve(&y, 1e-12).ok()
     };
     let field = |sol: &nalgebra::DVector<f64>| {
         let mut d = out;
-        for (j, &a) in axes.iter().enumerate() {
-            for t in 0..terms {
-                d.k[a][t] = sol[kinds.len() + terms * j + t];
-            }
+        for (j, &(a, t)) in cols.iter().enumerate() {
+            d.k[a][t] = sol[kinds.len() + j];
         }
         d
     };
