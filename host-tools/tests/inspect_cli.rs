@@ -41,6 +41,12 @@ fn the_worked_example_finds_the_longer_channel() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(text.contains("boundaries        42 of 51 found"), "{text}");
+    assert!(text.contains("photo resolution  43.8 px/mm"), "{text}");
+    assert!(text.contains("  widest "), "{text}");
+    assert!(
+        text.contains("away from switches, median: paste A (1.41 Pa s): 0.800 mm"),
+        "{text}"
+    );
     assert!(
         text.contains("believed off: channel and filament volume (channel_length_mm)"),
         "{text}"

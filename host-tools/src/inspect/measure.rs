@@ -307,6 +307,59 @@ fn width_at(bead: &Bead, s: f64, frame: &Frame, seen: &[u8], step: f64, reach: f
     Some(side(1.0) + side(-1.0))
 }
 
+/// One material's bead width away from its switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialWidth {
+    /// The material.
+    pub material: u8,
+    /// Median width of its samples, mm (1.5 pitch: its beads touch their neighbours).
+    pub median: f64,
+    /// Samples.
+    pub samples: usize,
+}
+
+/// How far from a boundary as it landed a width sample must lie to count for its
+/// material, mm: the flow settles over about the transit after a switch.
+pub const CLEAR_OF_SWITCH_MM: f64 = 1.0;
+
+/// Each material's median bead width over the samples of `widths` (as `widths` gives them)
+/// that lie more than `CLEAR_OF_SWITCH_MM` from every boundary of `moved` (the plan with
+/// each found boundary moved to where it landed) and more than `design::WINDOW_MM` from
+/// every boundary that was not found. A paste whose flow is off (its viscosity or its
+/// supply pressure) prints its whole run narrower or wider, not only after a switch.
+pub fn width_by_material(
+    plan: &Plan,
+    moved: &Plan,
+    found: &[Found],
+    widths: &[(usize, f64, f64)],
+) -> Vec<MaterialWidth> {
+    let mut by: std::collections::BTreeMap<u8, Vec<f64>> = Default::default();
+    for &(bi, s, w) in widths {
+        let near_landed = moved.beads[bi]
+            .runs
+            .iter()
+            .skip(1)
+            .any(|r| (s - r.0).abs() < CLEAR_OF_SWITCH_MM);
+        let near_unfound = plan.boundaries.iter().enumerate().any(|(i, b)| {
+            b.bead == bi
+                && (s - b.s).abs() < super::design::WINDOW_MM
+                && !found.iter().any(|f| f.index == i)
+        });
+        if !near_landed && !near_unfound {
+            by.entry(moved.beads[bi].material_at(s))
+                .or_default()
+                .push(w);
+        }
+    }
+    by.into_iter()
+        .map(|(material, v)| MaterialWidth {
+            material,
+            median: quantile(&v, 0.5),
+            samples: v.len(),
+        })
+        .collect()
+}
+
 /// The `q` quantile of `v` (0..1), by sorting a copy; 0 for none.
 pub fn quantile(v: &[f64], q: f64) -> f64 {
     if v.is_empty() {
@@ -548,5 +601,88 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
     match solve(&keep) {
         Some(sol) => field(&sol),
         None => rough,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::inspect::design::{Bead, Boundary};
+
+    /// One straight 10 mm bead, material 0 then 1 from s = 5 mm.
+    fn line() -> Plan {
+        Plan {
+            beads: vec![Bead {
+                points: vec![[0.0, 0.0], [10.0, 0.0]],
+                s: vec![0.0, 10.0],
+                runs: vec![(0.0, 0), (5.0, 1)],
+                turns: Vec::new(),
+            }],
+            boundaries: vec![Boundary {
+                bead: 0,
+                s: 5.0,
+                at: [5.0, 0.0],
+                from: 0,
+                to: 1,
+                room: (2.5, 2.5),
+            }],
+            pitch: 0.8,
+            lo: [0.0, -0.4],
+            hi: [10.0, 0.4],
+            materials: vec![0, 1],
+            layers: 1,
+            markers: None,
+        }
+    }
+
+    #[test]
+    fn widths_by_material_keep_clear_of_where_the_switch_landed() {
+        let plan = line();
+        let mut moved = plan.clone();
+        moved.beads[0].runs[1].0 = 6.0;
+        let found = [Found {
+            index: 0,
+            offset: 1.0,
+            fit: 1.0,
+        }];
+        // 0.8 mm wide up to where the switch landed, 0.6 after, with a neck at 6.5 that
+        // the switch explains and must not count.
+        let widths: Vec<(usize, f64, f64)> = (0..=20)
+            .map(|i| {
+                let s = i as f64 * 0.5;
+                (
+                    0,
+                    s,
+                    if s == 6.5 {
+                        0.1
+                    } else if s < 6.0 {
+                        0.8
+                    } else {
+                        0.6
+                    },
+                )
+            })
+            .collect();
+        let got = width_by_material(&plan, &moved, &found, &widths);
+        // Material 0: s = 0 to 5 (11 samples; 5.5 lies within 1 mm of 6); material 1:
+        // s = 7 to 10 (7 samples).
+        assert_eq!(
+            got,
+            vec![
+                MaterialWidth {
+                    material: 0,
+                    median: 0.8,
+                    samples: 11
+                },
+                MaterialWidth {
+                    material: 1,
+                    median: 0.6,
+                    samples: 7
+                }
+            ]
+        );
+        // Not found: everything within the search window of the design's place is left out.
+        let got = width_by_material(&plan, &plan, &[], &widths);
+        assert_eq!(got.iter().map(|m| m.samples).collect::<Vec<_>>(), [6, 6]);
     }
 }

@@ -134,6 +134,8 @@ pub struct Inspection {
     pub found: Vec<measure::Found>,
     /// Bead width samples: (bead, s, width mm).
     pub widths: Vec<(usize, f64, f64)>,
+    /// Each material's bead width away from its switches.
+    pub width_by_material: Vec<measure::MaterialWidth>,
     /// How finely the photo shows the print: photo pixels per millimetre of the design
     /// (the square root of the print's area in the photo over the design's).
     pub photo_px_per_mm: f64,
@@ -288,6 +290,43 @@ impl Inspection {
                     s,
                     "  narrowest {:.3} mm at ({:.2}, {:.2}) mm",
                     x, p[0], p[1]
+                );
+            }
+            if let Some((bi, s_mm, x)) = self
+                .widths
+                .iter()
+                .filter(|w| w.2 < cap - 1e-9)
+                .max_by(|a, b| a.2.total_cmp(&b.2))
+                .copied()
+            {
+                let (p, _) = self.plan.beads[bi].at(s_mm);
+                let _ = writeln!(
+                    s,
+                    "  widest {:.3} mm at ({:.2}, {:.2}) mm (of those under 1.5 pitch)",
+                    x, p[0], p[1]
+                );
+            }
+            let shown = |m: &measure::MaterialWidth| {
+                if m.median >= cap - 1e-9 {
+                    format!("{}: touching ({} samples)", name(m.material), m.samples)
+                } else {
+                    format!(
+                        "{}: {:.3} mm ({} samples)",
+                        name(m.material),
+                        m.median,
+                        m.samples
+                    )
+                }
+            };
+            if !self.width_by_material.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "  away from switches, median: {}",
+                    self.width_by_material
+                        .iter()
+                        .map(shown)
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 );
             }
         }
@@ -517,6 +556,7 @@ pub fn inspect_photo(
         )));
     }
     let widths = measure::widths(&plan, &frame, &seen, 0.5);
+    let width_by_material = measure::width_by_material(&plan, &moved, &found, &widths);
     let colours = names
         .iter()
         .zip(&palette.centres)
@@ -555,6 +595,7 @@ pub fn inspect_photo(
         found,
         widths,
         photo_px_per_mm,
+        width_by_material,
         unpinned: if registration == Registration::Markers {
             [false; 2]
         } else {
