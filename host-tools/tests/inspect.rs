@@ -201,16 +201,18 @@ fn check(name: &str, truth: Truth, seed: u64) {
         100.0 * ins.unexplained
     );
     parts(name, &ins, &p);
-    // Boundaries that land within a pitch of a turn are not read (see measure::boundaries).
+    // Boundaries that land on the short stretch between two rows where the bead is wide
+    // are not read (see measure::boundaries). Measured: 51 of 51, and 48 with the
+    // shorter channel.
     assert!(
-        ins.found.len() * 4 >= ins.plan.boundaries.len() * 3,
+        ins.found.len() * 10 >= ins.plan.boundaries.len() * 9,
         "{name}: found {} of {}",
         ins.found.len(),
         ins.plan.boundaries.len()
     );
     assert_eq!(errs.len(), ins.found.len(), "{name}: unmatched boundaries");
-    // 95 % of the boundaries within 0.05 mm of the plant's own; a boundary that lands a
-    // millimetre or more late near a turn can be read worse (measured: up to 0.22 mm).
+    // 95 % of the boundaries within 0.05 mm of the plant's own; one that lands a
+    // millimetre late beside the bead's round end can be read worse (measured: 0.24 mm).
     let worst = errs.iter().copied().fold(0.0, f64::max);
     assert!(
         p95(&errs) <= 0.05,
@@ -828,7 +830,7 @@ fn many_materials(k: usize, seed: u64) {
             );
         }
         assert!(
-            ins.found.len() * 4 >= ins.plan.boundaries.len() * 3,
+            ins.found.len() * 10 >= ins.plan.boundaries.len() * 9,
             "{name}: found {} of {}",
             ins.found.len(),
             ins.plan.boundaries.len()

@@ -40,7 +40,7 @@ fn the_worked_example_finds_the_longer_channel() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(text.contains("boundaries        42 of 51 found"), "{text}");
+    assert!(text.contains("boundaries        51 of 51 found"), "{text}");
     assert!(text.contains("photo resolution  43.8 px/mm"), "{text}");
     assert!(text.contains("  widest "), "{text}");
     assert!(

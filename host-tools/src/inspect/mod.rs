@@ -509,7 +509,14 @@ pub fn inspect_photo(
     let (residual, mut found) = drift_of(&seen);
     for f in &mut found {
         let b = plan.boundaries[f.index];
-        f.offset -= residual.along(b.at, plan.beads[b.bead].at(b.s).1);
+        // Beside a turn, seen where it landed (on the stretch between rows, or the next
+        // row), along the path there.
+        let (p, u) = if f.beside_turn {
+            plan.beads[b.bead].at(b.s + f.offset)
+        } else {
+            (b.at, plan.beads[b.bead].at(b.s).1)
+        };
+        f.offset -= residual.along(p, u);
     }
     // The same residual, taken out of the labels: the photo sampled once more, straight
     // into the frame, each frame pixel where its content shows.
