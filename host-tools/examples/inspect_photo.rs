@@ -57,7 +57,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         channel_scale: 1.2,
         ..Default::default()
     };
-    let plant = synth::plant_config(&config, &truth.physics(&config)).map_err(|e| e.to_string())?;
+    let plant = synth::plant_config(&config, &truth.physics(&config), &truth.supply_scale)
+        .map_err(|e| e.to_string())?;
     let (pitch, radius) = inspect::geometry(&config);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     // The photo takes in the markers.

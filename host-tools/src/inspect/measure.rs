@@ -367,6 +367,21 @@ fn width_at(bead: &Bead, s: f64, frame: &Frame, seen: &[u8], step: f64, reach: f
     Some(side(1.0) + side(-1.0))
 }
 
+/// `plan` with each of `found`'s boundaries moved to where it landed.
+pub fn moved(plan: &Plan, found: &[Found]) -> Plan {
+    let mut moved = plan.clone();
+    for f in found {
+        let b = plan.boundaries[f.index];
+        if let Some(run) = moved.beads[b.bead].runs.iter_mut().find(|r| r.0 == b.s) {
+            run.0 = (b.s + f.offset).max(0.0);
+        }
+    }
+    for bead in &mut moved.beads {
+        bead.runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    moved
+}
+
 /// One material's bead width away from its switches.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaterialWidth {

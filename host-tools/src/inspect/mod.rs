@@ -526,16 +526,7 @@ pub fn inspect_photo(
         rectified = pic;
     }
     let pattern_error = measure::pattern_error(&design, &seen);
-    let mut moved = plan.clone();
-    for f in &found {
-        let b = plan.boundaries[f.index];
-        if let Some(run) = moved.beads[b.bead].runs.iter_mut().find(|r| r.0 == b.s) {
-            run.0 = (b.s + f.offset).max(0.0);
-        }
-    }
-    for bead in &mut moved.beads {
-        bead.runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    }
+    let moved = measure::moved(&plan, &found);
     // Only where paste shows: gaps between thin beads are not another job.
     let unexplained = {
         let want = measure::paint(&moved, &frame);

@@ -1,8 +1,8 @@
 //! Test photos from a simulated print: the job run through the executor against a plant
-//! that may differ from the config (`Truth`: channel volume, valve dead time, viscosity),
-//! the landed paste painted into the design's frame in material colours (bead width from
-//! the landed section), then photographed: a random perspective, uneven light, blur and
-//! noise. Tests and the README's worked example use it; `dollop inspect` itself does not.
+//! that may differ from the config (`Truth`: channel volume, valve dead time, viscosity,
+//! supply pressure), the landed paste painted into the design's frame in material colours
+//! (bead width from the landed section), then photographed: a random perspective, uneven
+//! light, blur and noise. Tests and the README's worked example use it; `dollop inspect` itself does not.
 
 use super::classify::PLATE;
 use super::register::Frame;
@@ -24,6 +24,9 @@ pub struct Truth {
     pub dead_time_ms: f64,
     /// Real viscosity (consistency) over the configured one, per inlet.
     pub viscosity_scale: [f64; 4],
+    /// Supply pressure the regulator delivers over what the config sets, per inlet (a
+    /// gauge or regulator off; valve inlets only).
+    pub supply_scale: [f64; 4],
 }
 
 impl Default for Truth {
@@ -32,6 +35,7 @@ impl Default for Truth {
             channel_scale: 1.0,
             dead_time_ms: 0.0,
             viscosity_scale: [1.0; 4],
+            supply_scale: [1.0; 4],
         }
     }
 }
@@ -65,13 +69,19 @@ impl Truth {
 }
 
 /// The plant's config: the real `physics` with the supply pressures that `config`
-/// computes (the regulators are set from the config the user has, whatever the truth).
-pub fn plant_config(config: &Config, physics: &Config) -> Result<Config, dollop::ConfigError> {
+/// computes (the regulators are set from the config the user has, whatever the truth),
+/// each times its `supply_scale` (what the regulator really delivers).
+pub fn plant_config(
+    config: &Config,
+    physics: &Config,
+    supply_scale: &[f64; 4],
+) -> Result<Config, dollop::ConfigError> {
     let machine = config.validate::<f64, { dollop::config::MAX_CONFIG_INLETS }>()?;
     let mut c = physics.clone();
     for (i, inlet) in c.inlets.iter_mut().enumerate() {
         if inlet.syringe.is_none() {
-            inlet.pressure_kpa = Pressure::Kpa((machine.inlets[i].supply_pa / 1000.0) as f32);
+            let k = supply_scale.get(i).copied().unwrap_or(1.0);
+            inlet.pressure_kpa = Pressure::Kpa((machine.inlets[i].supply_pa * k / 1000.0) as f32);
         }
     }
     Ok(c)
