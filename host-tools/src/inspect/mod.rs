@@ -279,32 +279,27 @@ impl Inspection {
                 self.plan.pitch,
                 touching
             );
-            if let Some((bi, s_mm, x)) = self
-                .widths
-                .iter()
-                .min_by(|a, b| a.2.total_cmp(&b.2))
-                .copied()
-            {
-                let (p, _) = self.plan.beads[bi].at(s_mm);
-                let _ = writeln!(
-                    s,
-                    "  narrowest {:.3} mm at ({:.2}, {:.2}) mm",
-                    x, p[0], p[1]
-                );
-            }
-            if let Some((bi, s_mm, x)) = self
+            let narrowest = self.widths.iter().min_by(|a, b| a.2.total_cmp(&b.2));
+            let widest = self
                 .widths
                 .iter()
                 .filter(|w| w.2 < cap - 1e-9)
-                .max_by(|a, b| a.2.total_cmp(&b.2))
-                .copied()
-            {
-                let (p, _) = self.plan.beads[bi].at(s_mm);
-                let _ = writeln!(
-                    s,
-                    "  widest {:.3} mm at ({:.2}, {:.2}) mm (of those under 1.5 pitch)",
-                    x, p[0], p[1]
-                );
+                .max_by(|a, b| a.2.total_cmp(&b.2));
+            for (what, w) in [("narrowest", narrowest), ("widest", widest)] {
+                if let Some(&(bi, s_mm, x)) = w {
+                    let (p, _) = self.plan.beads[bi].at(s_mm);
+                    let _ = writeln!(
+                        s,
+                        "  {what} {x:.3} mm at ({:.2}, {:.2}) mm{}",
+                        p[0],
+                        p[1],
+                        if what == "widest" {
+                            " (of those under 1.5 pitch)"
+                        } else {
+                            ""
+                        }
+                    );
+                }
             }
             let shown = |m: &measure::MaterialWidth| {
                 if m.median >= cap - 1e-9 {
