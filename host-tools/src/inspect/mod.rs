@@ -33,7 +33,7 @@ pub const EDGE_EVERY_MM: f64 = 0.1;
 
 /// Photo pixels a millimetre under which the report warns that the pattern error reads
 /// low. Measured on synthesized photos of a print whose slower valve thins the beads after
-/// each switch (plant 4.51 %): 0.68 points low at 30.6 px/mm, 0.45 at 40.8.
+/// each switch (plant 4.51 %): 0.68 points low at 31.2 px/mm, 0.45 at 41.5.
 pub const MIN_PX_PER_MM: f64 = 40.0;
 
 /// How to inspect.
