@@ -50,7 +50,7 @@ pub struct Args {
     /// with LASER_SYNCHRONOUS_M106_M107 so fan changes are queued with the moves) or
     /// `marlin-m42` (`M400` then `M42 P<pin> S0|255`, for stock Marlin: the head stops at
     /// each valve change).
-    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = ["plain", "reprap", "klipper", "marlin", "marlin-m42"])]
+    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = clap::builder::PossibleValuesParser::new(Kind::ALL.map(Kind::name)))]
     pub gcode_dialect: String,
     /// Port (plain, reprap), output_pin number (klipper), fan index 0-7 (marlin) or board
     /// pin (marlin-m42) of each inlet's valve, inlet 0 first [default: 0,1,..].
@@ -234,13 +234,8 @@ impl Args {
 
 /// The G-code dialect and valve ports from `--gcode-dialect` and `--gcode-ports`.
 fn gcode_dialect(a: &Args, inlets: usize) -> Result<Dialect, SliceError> {
-    let kind = match a.gcode_dialect.as_str() {
-        "reprap" => Kind::RepRap,
-        "klipper" => Kind::Klipper,
-        "marlin" => Kind::Marlin,
-        "marlin-m42" => Kind::MarlinM42,
-        _ => Kind::Plain,
-    };
+    // clap has checked the word against `Kind::ALL`.
+    let kind = Kind::from_name(&a.gcode_dialect).unwrap_or_default();
     let max = Dialect::max_port(kind);
     let mut ports = Vec::new();
     if let Some(list) = &a.gcode_ports {

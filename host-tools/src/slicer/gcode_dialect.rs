@@ -70,6 +70,31 @@ pub enum Kind {
     MarlinM42,
 }
 
+impl Kind {
+    /// Every dialect, in the order `--help` lists them.
+    pub const ALL: [Kind; 5] = [
+        Kind::Plain,
+        Kind::RepRap,
+        Kind::Klipper,
+        Kind::Marlin,
+        Kind::MarlinM42,
+    ];
+    /// Name as the command line spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Plain => "plain",
+            Kind::RepRap => "reprap",
+            Kind::Klipper => "klipper",
+            Kind::Marlin => "marlin",
+            Kind::MarlinM42 => "marlin-m42",
+        }
+    }
+    /// The dialect the command line's `name` spells, if any.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
 impl Dialect {
     /// A dialect with ports 0, 1, ..
     pub fn new(kind: Kind) -> Self {
@@ -84,13 +109,7 @@ impl Dialect {
     }
     /// Name as the command line spells it.
     pub fn name(&self) -> &'static str {
-        match self.kind {
-            Kind::Plain => "plain",
-            Kind::RepRap => "reprap",
-            Kind::Klipper => "klipper",
-            Kind::Marlin => "marlin",
-            Kind::MarlinM42 => "marlin-m42",
-        }
+        self.kind.name()
     }
     /// The highest port number the dialect can address: Marlin has at most eight fans.
     pub fn max_port(kind: Kind) -> u32 {
@@ -356,6 +375,14 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_dialect_is_found_by_its_name() {
+        for k in Kind::ALL {
+            assert_eq!(Kind::from_name(k.name()), Some(k));
+        }
+        assert_eq!(Kind::from_name("marlin2"), None);
+    }
 
     fn config() -> Config {
         toml::from_str(
