@@ -110,27 +110,16 @@ pub struct Found {
     pub beside_turn: bool,
 }
 
-/// Half the bead's width where it turns at `t`, as the photo shows it: from the centre
-/// line's outermost point there (the middle of the short stretch to the next turn, when
-/// there is one within a pitch and a half) out along the way the bead came in, to the
+/// Half the bead's width on the short stretch between the turns at `a` and `b`, as the
+/// photo shows it: from the stretch's middle out along the way the bead came in, to the
 /// plate; between a quarter and a whole pitch.
-pub fn half_width_at_turn(bead: &Bead, t: f64, frame: &Frame, seen: &[u8], pitch: f64) -> f64 {
-    let next = bead
-        .turns
-        .iter()
-        .copied()
-        .find(|&n| n > t && n - t < 1.5 * pitch);
-    let prev = bead
-        .turns
-        .iter()
-        .copied()
-        .rev()
-        .find(|&n| n < t && t - n < 1.5 * pitch);
-    let (a, b) = match (prev, next) {
-        (_, Some(n)) => (t, n),
-        (Some(p), None) => (p, t),
-        (None, None) => (t, t),
-    };
+pub fn half_width_between_turns(
+    bead: &Bead,
+    (a, b): (f64, f64),
+    frame: &Frame,
+    seen: &[u8],
+    pitch: f64,
+) -> f64 {
     let (p, _) = bead.at(0.5 * (a + b));
     let (_, u) = bead.at(a - 0.5 * pitch);
     let step = 0.25 / frame.px_per_mm;
@@ -305,7 +294,7 @@ pub fn boundaries(plan: &Plan, frame: &Frame, seen: &[u8]) -> Vec<Found> {
             .windows(2)
             .find(|w| w[1] - w[0] < 1.5 * plan.pitch && w[0] < landed && landed < w[1]);
         if let Some(w) = between {
-            let half = half_width_at_turn(bead, w[0], frame, seen, plan.pitch);
+            let half = half_width_between_turns(bead, (w[0], w[1]), frame, seen, plan.pitch);
             if half > MAX_TURN_HALF_WIDTH * plan.pitch {
                 continue;
             }
