@@ -1,17 +1,23 @@
 //! dollop's STM32F405 firmware: embassy glue around the board-independent
 //! `dollop::device`. Interrupt priorities, highest first: e-stop (EXTI, forces the safe
-//! state through registers), step pulses (TIM3, 100 kHz), the control loop (UART5 used as
-//! a software interrupt, pended every 10th step tick), then USB and the thread-mode
-//! executor that runs the link. The control loop and the link share only `shared`'s
+//! state through registers), step pulses (TIM3, 100 kHz) and the host UART's receive
+//! (UART4, at the same level: a byte lasts 10 us at 1 Mbaud and must be read before the
+//! next one ends), the control loop (UART5 used as a software interrupt, pended every
+//! 10th step tick), then USB and the thread-mode executor that runs the link. Boot order:
+//! safe outputs before RAM is initialised (`preinit`), the brown-out level, the watchdog,
+//! the crystal with a bounded wait (`boot`), then embassy's clocks. The control loop and the link share only `shared`'s
 //! queues and snapshot. Pins and clocks come from `board`. The big state (control loop,
 //! link) lives in statics built at compile time: nothing large is ever on the stack.
 #![no_std]
 #![no_main]
 
 mod board;
+mod boot;
 mod control;
 mod faults;
 mod host;
+mod line;
+mod preinit;
 mod shared;
 mod step;
 mod store;
@@ -23,6 +29,7 @@ use defmt_rtt as _;
 use dollop::device::{BoardInfo, Control, Link, ResetCause};
 use dollop::wire;
 use embassy_executor::Spawner;
+use embassy_stm32::gpio::Pull;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::peripherals::USB_OTG_FS;
 use embassy_stm32::time::Hertz;
@@ -39,7 +46,8 @@ use store::FlashStore;
 
 bind_interrupts!(struct Irqs {
     OTG_FS => usb::InterruptHandler<USB_OTG_FS>;
-    UART4 => usart::BufferedInterruptHandler<embassy_stm32::peripherals::UART4>;
+    // The line-error count first: embassy's handler clears the flags it reads.
+    UART4 => line::CountErrors, usart::BufferedInterruptHandler<embassy_stm32::peripherals::UART4>;
 });
 
 type UsbDriver = Driver<'static, USB_OTG_FS>;
@@ -95,29 +103,51 @@ fn EXTI15_10() {
     let line = board::ESTOP.pin as usize;
     if pac::EXTI.pr(0).read().line(line) {
         pac::EXTI.pr(0).write(|w| w.set_line(line, true));
-        control::estop_tripped();
+        // A spike shorter than the three samples is noise, not an e-stop; a real
+        // opening that bounces raises another edge, and the control loop's filtered
+        // level catches it regardless.
+        if control::estop_confirmed() {
+            control::estop_tripped();
+        }
     }
 }
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
-    // Before anything else: valves closed, drivers disabled.
-    board::safe_at_reset();
+    // Valves closed and drivers disabled since `__pre_init` (preinit.rs).
     let reset = if wdg::caused_reset() {
         ResetCause::Watchdog
     } else {
         ResetCause::PowerOn
     };
+    // Before the watchdog: the one-time option-byte write may outlast its timeout.
+    let bor = boot::brown_out_level_3();
+    // Before the clocks: a clock set-up that hangs resets the chip.
+    wdg::start();
+    if !boot::start_hse() {
+        boot::clock_fault();
+    }
     let p = embassy_stm32::init(board::clocks());
     board::flash_accelerator_on();
+    boot::clock_security_on();
     // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
     interrupt::TIM5.set_priority(Priority::P4);
-    wdg::start();
     defmt::info!(
         "dollop firmware {} on {}",
         env!("CARGO_PKG_VERSION"),
         board::NAME
     );
+    match bor {
+        boot::Bor::AlreadySet => defmt::info!("brown-out reset at level 3 (2.70 V)"),
+        boot::Bor::Written { was } => defmt::warn!(
+            "brown-out reset set to level 3 (2.70 V) in the option bytes (was BOR_LEV {=u8})",
+            was
+        ),
+        boot::Bor::Failed { now } => defmt::error!(
+            "brown-out level 3 not written: the option bytes still read BOR_LEV {=u8}",
+            now
+        ),
+    }
 
     let parts = board::parts(p);
     let mut out = PinOutputs {
@@ -198,8 +228,13 @@ async fn main(spawner: Spawner) {
     static UART_RX: StaticCell<[u8; 1024]> = StaticCell::new();
     let mut uart_config = usart::Config::default();
     uart_config.baudrate = board::HOST_UART_BAUD;
+    // An unconnected or unpowered host leaves RX floating: noise would make garbage
+    // frames (and switch the link's reply side to the UART).
+    uart_config.rx_pull = Pull::Up;
     let (uart, rx, tx) = parts.uart;
-    interrupt::UART4.set_priority(Priority::P5);
+    // With the step timer: above the control loop (whose tick is 7-12 us, longer than a
+    // byte), below only the e-stop.
+    interrupt::UART4.set_priority(Priority::P1);
     let uart = match usart::BufferedUart::new(
         uart,
         rx,

@@ -50,6 +50,12 @@ impl ToControl for LinkEnd {
     }
 }
 
+/// Whether the control loop's last published snapshot has the drivers enabled (read by
+/// the job store to put them back after a flash operation).
+pub fn drivers_commanded() -> bool {
+    SNAPSHOT.lock(|s| s.get().drivers)
+}
+
 impl FromLink for ControlEnd {
     fn next_order(&mut self) -> Option<Order> {
         ORDERS.try_receive().ok()
