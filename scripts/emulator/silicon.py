@@ -202,12 +202,12 @@ def check_cold(m, first_optcr_writes):
     return out
 
 
-def scenario_overflow(image, args, log_dir):
+def scenario_overflow(image, args, log_dir, m):
     """Boots, then in the control interrupt sets SP to the bottom of the memory the stack
     lives in (QEMU: SRAM's start; the chip: the CCM's start), with valve 0 open and the
-    drivers enabled in the pin model: the handler's next push is an overflow."""
+    drivers enabled in the pin model: the handler's next push is an overflow. Fills m."""
     emu = E.boot(image, args, log_dir, "overflow")
-    m = dict(emu=emu, boot=emu.boot_result)
+    m.update(emu=emu, boot=emu.boot_result)
     if emu.boot_result != "control loop":
         return m
     # The rest of the set-up (USB, the host UART) runs after the control loop's first
@@ -249,15 +249,31 @@ def check_overflow(m):
     return "stack overflow ends safe", ok and on_own, fig
 
 
+def qemu_said(emu):
+    """QEMU's own fatal message (a lockup ends QEMU), if it printed one."""
+    try:
+        emu.qemu_log.flush()
+        with open(emu.qemu_log.name) as f:
+            return next((l.strip() for l in f if "fatal" in l), "")
+    except OSError:
+        return ""
+
+
 def run(image, args, log_dir, results):
     """Boot 1 (factory option bytes): the registers read back, then the overflow; boot 2
-    with the option bytes boot 1 left and a dead crystal."""
-    m = scenario_overflow(image, args, log_dir)
+    with the option bytes boot 1 left and a dead crystal. A QEMU that dies (a lockup)
+    fails the check it was running, not the others."""
+    m = {}
+    try:
+        scenario_overflow(image, args, log_dir, m)
+        overflow = check_overflow(m)
+    except (E.TargetGone, RuntimeError) as e:
+        overflow = ("stack overflow ends safe", False, "%s: %s" % (e, qemu_said(m["emu"]) if "emu" in m else ""))
     emu = m["emu"]
     first = emu.log.find("FLASH", "OPTCR")
     optcr = emu.chip.values.get(E.FLASH_OPTCR, E.RESET_VALUES[E.FLASH_OPTCR])
-    results += m.get("registers") or [("NVIC priorities read back", False, "did not boot (%s)" % m["boot"])]
-    results.append(check_overflow(m))
+    results += m.get("registers") or [("NVIC priorities read back", False, "did not boot (%s)" % m.get("boot"))]
+    results.append(overflow)
     emu.log.dump(log_dir + "/writes-overflow.csv")
     emu.kill()
     m = scenario_cold(image, args, log_dir, optcr)
