@@ -112,20 +112,22 @@ pub fn clock_security_on() {
 
 /// No crystal: the board cannot run (USB needs the crystal's accuracy, and the step and
 /// control rates are derived from it). The outputs have been safe since `__pre_init`;
-/// this blinks the status LED in bursts of three and never feeds the watchdog, which was
-/// started before the clocks, so the chip resets (170-470 ms) and tries again. The lab
-/// sees the LED pattern (docs/bring-up.md) and no USB device.
+/// this flashes the status LED three times quickly (120 ms, shorter than the watchdog's
+/// shortest timeout) and then waits, never feeding the watchdog, which was started
+/// before the clocks: the chip resets (170-470 ms) and tries again. The lab sees bursts
+/// of three flashes and no USB device (docs/bring-up.md).
 #[inline(never)]
 pub fn clock_fault() -> ! {
     board::force_safe_raw();
     board::led_raw_init();
+    const MS: u32 = HSI_HZ / 1000;
+    for _ in 0..3 {
+        board::led_raw(true);
+        cortex_m::asm::delay(15 * MS);
+        board::led_raw(false);
+        cortex_m::asm::delay(25 * MS);
+    }
     loop {
-        for _ in 0..3 {
-            board::led_raw(true);
-            cortex_m::asm::delay(HSI_HZ / 20);
-            board::led_raw(false);
-            cortex_m::asm::delay(HSI_HZ / 20);
-        }
-        cortex_m::asm::delay(HSI_HZ / 4);
+        cortex_m::asm::nop();
     }
 }

@@ -40,7 +40,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::UsbDevice;
-use static_cell::{ConstStaticCell, StaticCell};
+use static_cell::StaticCell;
 use step::Stepper;
 use store::FlashStore;
 
@@ -60,13 +60,14 @@ const INFO: BoardInfo = BoardInfo {
     control_hz: board::CONTROL_HZ,
 };
 
-/// The control loop's state (42 KiB: the executor and its flow model), built by the
-/// compiler in RAM. Moving it through the stack overflowed the 64 KiB stack at boot.
-static CONTROL_STATE: ConstStaticCell<Control> =
-    ConstStaticCell::new(Control::new(ResetCause::PowerOn));
-/// The link's state (6 KiB: frame buffer, chunk window, reply queue), likewise.
-static LINK: ConstStaticCell<Link<FlashStore>> =
-    ConstStaticCell::new(Link::new(FlashStore::new(), INFO));
+/// The control loop's state (58 KiB: the executor, its flow model and speed-ramp window)
+/// and the link's (6 KiB: frame buffer, chunk window, reply queue), in `.bss`: all but
+/// about 40 of their bytes are zeros, and a `const` initialiser would put them in `.data`,
+/// whose whole image is stored in flash and copied at boot. Built in place at start
+/// (`uninit().write`, from a value the compiler cannot fold into a constant), never on the
+/// stack: `.ci/firmware-stack` fails on any frame over 4 KiB.
+static CONTROL_STATE: StaticCell<Control> = StaticCell::new();
+static LINK: StaticCell<Link<FlashStore>> = StaticCell::new();
 
 /// Handed to the interrupts once at start (a reference: the contexts live in statics).
 static STEPPER: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Stepper>>> =
@@ -154,8 +155,7 @@ async fn main(spawner: Spawner) {
         valves: parts.valves,
         enable: parts.enable,
     };
-    let control = CONTROL_STATE.take();
-    control.set_reset_cause(reset);
+    let control = control_state(reset);
     control.power_up(&mut out);
     estop_interrupt();
 
@@ -251,7 +251,7 @@ async fn main(spawner: Spawner) {
         }
     };
 
-    let link = LINK.take();
+    let link = link_state();
     link.store_mut().attach(parts.flash);
     match usb_task(usb) {
         Ok(t) => spawner.spawn(t),
@@ -265,6 +265,23 @@ async fn main(spawner: Spawner) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("link task did not spawn"),
     }
+}
+
+/// The control loop's state, built in its static (once: a second call panics). Out of
+/// line, so that whatever the compiler stages on the stack while building it is in this
+/// short-lived frame, not in the main task's.
+#[inline(never)]
+fn control_state(reset: ResetCause) -> &'static mut Control {
+    CONTROL_STATE
+        .uninit()
+        .write(Control::new(core::hint::black_box(reset)))
+}
+
+/// The link's state, likewise.
+#[inline(never)]
+fn link_state() -> &'static mut Link<FlashStore> {
+    LINK.uninit()
+        .write(Link::new(FlashStore::new(), core::hint::black_box(INFO)))
 }
 
 /// E-stop on EXTI line 13, port C, rising edge (the normally-closed switch opens).

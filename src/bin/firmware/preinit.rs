@@ -1,6 +1,6 @@
 //! The safe state at the very first instruction after reset: `__pre_init`, which
-//! cortex-m-rt's reset handler calls before it zeroes `.bss` and copies `.data` (about
-//! 8 ms at the reset clock for the image's initialised statics). It drives the valves low
+//! cortex-m-rt's reset handler calls before it zeroes `.bss` and copies `.data` (the
+//! 64 KiB of statics take milliseconds at the reset clock). It drives the valves low
 //! and the driver enable high and makes them outputs, through registers only. Stops there:
 //! clocks, watchdog and everything else come later (`boot`, `main`).
 //!
