@@ -1,11 +1,15 @@
-//! What the chip must settle before embassy takes over, all on registers at the reset
-//! clock (HSI, 16 MHz): the brown-out reset level in the option bytes, and the crystal,
-//! started here with a bounded wait because embassy's clock set-up waits for HSERDY
-//! without one. Stops there: the clock tree itself is embassy's (`board::clocks`).
+//! The boot sequence up to a clocked chip with its peripherals (`start`), and what it
+//! must settle on registers at the reset clock (HSI, 16 MHz) before embassy takes over:
+//! the brown-out reset level in the option bytes, and the crystal, started here with a
+//! bounded wait because embassy's clock set-up waits for HSERDY without one. Stops there:
+//! the clock tree itself is embassy's (`board::clocks`), the pins are `board::parts`.
 
-use crate::board;
+use crate::{board, wdg};
+use dollop::device::ResetCause;
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::pac;
 use embassy_stm32::pac::flash::regs::Optcr;
+use embassy_stm32::Peripherals;
 
 /// Reset clock (HSI) the waits below are counted in.
 const HSI_HZ: u32 = 16_000_000;
@@ -30,6 +34,46 @@ const SR_BSY: u32 = 1 << 16;
 /// bytes' own sector; 4 s at the reset clock is well over any figure RM0090 or the
 /// datasheet gives for an erase of the smallest sector.
 const OPT_WAIT_LOOPS: u32 = 4 * HSI_HZ / 8;
+
+/// From reset to a clocked chip: the valves closed and the drivers disabled since
+/// `__pre_init` (preinit.rs); then the brown-out level (before the watchdog: the one-time
+/// option-byte write may outlast its timeout), the watchdog (before the clocks: a clock
+/// set-up that hangs resets the chip), the crystal, embassy's clocks. Returns the
+/// peripherals and why the chip last reset.
+pub fn start() -> (Peripherals, ResetCause) {
+    let reset = if wdg::caused_reset() {
+        ResetCause::Watchdog
+    } else {
+        ResetCause::PowerOn
+    };
+    let bor = brown_out_level_3();
+    wdg::start();
+    if !start_hse() {
+        clock_fault();
+    }
+    let p = embassy_stm32::init(board::clocks());
+    board::flash_accelerator_on();
+    clock_security_on();
+    // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
+    interrupt::TIM5.set_priority(Priority::P4);
+    defmt::info!(
+        "dollop firmware {} on {}",
+        env!("CARGO_PKG_VERSION"),
+        board::NAME
+    );
+    match bor {
+        Bor::AlreadySet => defmt::info!("brown-out reset at level 3 (2.70 V)"),
+        Bor::Written { was } => defmt::warn!(
+            "brown-out reset set to level 3 (2.70 V) in the option bytes (was BOR_LEV {=u8})",
+            was
+        ),
+        Bor::Failed { now } => defmt::error!(
+            "brown-out level 3 not written: the option bytes still read BOR_LEV {=u8}",
+            now
+        ),
+    }
+    (p, reset)
+}
 
 /// What `brown_out_level_3` found and did.
 #[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]

@@ -115,41 +115,7 @@ fn EXTI15_10() {
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
-    // Valves closed and drivers disabled since `__pre_init` (preinit.rs).
-    let reset = if wdg::caused_reset() {
-        ResetCause::Watchdog
-    } else {
-        ResetCause::PowerOn
-    };
-    // Before the watchdog: the one-time option-byte write may outlast its timeout.
-    let bor = boot::brown_out_level_3();
-    // Before the clocks: a clock set-up that hangs resets the chip.
-    wdg::start();
-    if !boot::start_hse() {
-        boot::clock_fault();
-    }
-    let p = embassy_stm32::init(board::clocks());
-    board::flash_accelerator_on();
-    boot::clock_security_on();
-    // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
-    interrupt::TIM5.set_priority(Priority::P4);
-    defmt::info!(
-        "dollop firmware {} on {}",
-        env!("CARGO_PKG_VERSION"),
-        board::NAME
-    );
-    match bor {
-        boot::Bor::AlreadySet => defmt::info!("brown-out reset at level 3 (2.70 V)"),
-        boot::Bor::Written { was } => defmt::warn!(
-            "brown-out reset set to level 3 (2.70 V) in the option bytes (was BOR_LEV {=u8})",
-            was
-        ),
-        boot::Bor::Failed { now } => defmt::error!(
-            "brown-out level 3 not written: the option bytes still read BOR_LEV {=u8}",
-            now
-        ),
-    }
-
+    let (p, reset) = boot::start();
     let parts = board::parts(p);
     let mut out = PinOutputs {
         valves: parts.valves,
