@@ -461,7 +461,10 @@ RESET_VALUES = {
     0x1FFF7A14: 0x3436510D,
     0x1FFF7A18: 0x37323834,
     0x1FFF7A20: 0x04000000,  # flash size 1024 KiB (half-word at 0x1FFF7A22)
+    0x40023C14: 0x0FFFAAED,  # FLASH_OPTCR: factory option bytes (BOR off, OPTLOCK set)
 }
+FLASH_OPTCR = 0x40023C14
+OPTKEYS = (0x08192A3B, 0x4C5D6E7F)
 
 
 class Chip:
@@ -476,6 +479,10 @@ class Chip:
 
     def __init__(self):
         self.values = dict(RESET_VALUES)
+        # The crystal: False models a dead one (HSERDY never set).
+        self.hse_ok = True
+        # Option-key sequence progress (FLASH_OPTKEYR); OPTCR takes writes once unlocked.
+        self.optkeys = 0
         # Inputs: e-stop PC13 low (closed switch: not stopped), endstops PC0..PC2 high
         # (active low: not triggered), VBUS PA9 low (no cable).
         self.inputs = {"GPIOA": 0, "GPIOB": 0, "GPIOC": 0b111}
@@ -496,7 +503,7 @@ class Chip:
         if name == "RCC":
             if off == 0x00:
                 v = (v & ~((1 << 1) | (1 << 17) | (1 << 25) | (1 << 27))) | ((v & 1) << 1) | (
-                    ((v >> 16) & 1) << 17) | (((v >> 24) & 1) << 25) | (((v >> 26) & 1) << 27)
+                    ((v >> 16) & 1 & self.hse_ok) << 17) | (((v >> 24) & 1) << 25) | (((v >> 26) & 1) << 27)
             elif off == 0x08:
                 v = (v & ~0xC) | ((v & 3) << 2)
             elif off == 0x70:
@@ -544,6 +551,19 @@ class Chip:
             new = old & ~(value << shift)  # GOTGINT, GINTSTS: write 1 to clear
         if name == "RCC" and off == 0x74 and new & (1 << 24):
             new &= 0x00FFFFFF  # RMVF clears the reset flags
+        if name == "FLASH" and off == 0x08:
+            # OPTKEYR: the two keys in order clear OPTLOCK; anything else restarts.
+            self.optkeys = self.optkeys + 1 if value == OPTKEYS[self.optkeys % 2] and self.optkeys < 2 else 0
+            if self.optkeys == 2:
+                self.values[FLASH_OPTCR] = self.values.get(FLASH_OPTCR, 0) & ~1
+        if name == "FLASH" and off == 0x14:
+            if old & 1 and self.optkeys < 2:
+                return old  # locked: the write is ignored
+            # OPTSTRT: the option bytes are programmed (at once here) and the bit clears;
+            # OPTLOCK written 1 locks again until the next key sequence.
+            new &= ~2
+            if new & 1:
+                self.optkeys = 0
         self.values[waddr] = new
         return new
 
@@ -984,9 +1004,11 @@ def free_port():
 FAULT_STOPS = ("HardFault", "DefaultHandler", "panic", "Reset")
 
 
-def boot(image, args, log_dir, label, serial=None):
+def boot(image, args, log_dir, label, serial=None, prepare=None, stops=()):
     """A fresh QEMU halted at reset, relocated and clocked, run until the control loop's
-    first period (the UART5 handler), with every unmodelled register modelled."""
+    first period (the UART5 handler), with every unmodelled register modelled.
+    prepare(emu), if given, runs just before the firmware starts (a scenario's own chip
+    state and watches); stops: more (address, name) breakpoints that end the boot."""
     emu = Emulator(image, args, log_dir, label, serial)
     emu.feeds = 0
     emu.stack_crossing = None
@@ -1004,6 +1026,11 @@ def boot(image, args, log_dir, label, serial=None):
     emu.breakpoint(image.sym("rust_begin_unwind", "__rustc::rust_begin_unwind"), "panic")
     emu.breakpoint(image.sym("Reset"), "Reset")
     emu.stop_at = ("control loop",) + FAULT_STOPS
+    for addr, name in stops:
+        emu.breakpoint(addr, name)
+        emu.stop_at += (name,)
+    if prepare:
+        prepare(emu)
     why = emu.run(args.boot_wall)
     emu.boot_result = why
     if why == "control loop":
@@ -1364,7 +1391,8 @@ def main():
     ap.add_argument("--boot-wall", type=float, default=60.0)
     ap.add_argument("--run-wall", type=float, default=150.0)
     ap.add_argument("--fault-wall", type=float, default=2.0)
-    ap.add_argument("--only", choices=["main", "hardfault", "panic"], action="append")
+    ap.add_argument("--only", choices=["main", "hardfault", "panic", "silicon"], action="append",
+                    help="silicon: the real-chip checks of scripts/emulator/silicon.py")
     fil = ap.add_argument_group("firmware in the loop (--job): `dollop send` over the emulated UART4, pins "
                                 "against `dollop simulate --model-only`")
     fil.add_argument("--job", help="job file (.dlp) to print; runs the firmware-in-the-loop scenarios")
@@ -1400,7 +1428,7 @@ def main():
         args.elf, args.icount_shift, 1 << args.icount_shift), flush=True)
     results = []
     wall0 = time.monotonic()
-    scen = args.only or ([] if args.job else ["main", "hardfault", "panic"])
+    scen = args.only or ([] if args.job else ["main", "hardfault", "panic", "silicon"])
     summary = None
     try:
         run_scenarios(image, args, log_dir, scen, results)
@@ -1475,6 +1503,9 @@ def run_scenarios(image, args, log_dir, scen, results):
             results.append(check_fault(m, kind))
             m["emu"].log.dump(os.path.join(log_dir, "writes-%s.csv" % kind))
             m["emu"].kill()
+    if "silicon" in scen:
+        from emulator import silicon
+        silicon.run(image, args, log_dir, results)
 
 
 if __name__ == "__main__":

@@ -840,6 +840,7 @@ impl<S: JobStore> Core<S> {
             fed: self.fed,
             config: self.config_hash,
             link_lost: self.link_lost,
+            line_errors: port.line_errors(),
         }
     }
 

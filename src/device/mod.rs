@@ -22,7 +22,7 @@ pub use store::{JobStore, RamStore};
 use crate::command::Command;
 use crate::config::Machine;
 use crate::outputs::Axis;
-use crate::wire::{LinkLossPolicy, Settings, Snapshot};
+use crate::wire::{LineErrors, LinkLossPolicy, Settings, Snapshot};
 
 /// The machine the board runs: f32 (the M4's FPU), four inlets. The link validates a
 /// config into one in thread mode; the control loop only loads it.
@@ -106,6 +106,11 @@ pub trait ToControl {
     fn post_config(&mut self, machine: &BoardMachine) -> bool;
     /// The control loop's latest snapshot.
     fn snapshot(&self) -> Snapshot;
+    /// The board's serial-line receive errors so far, for the status (none by default:
+    /// boards without a UART, the simulator).
+    fn line_errors(&self) -> LineErrors {
+        LineErrors::default()
+    }
 }
 
 /// The control loop's end.

@@ -474,6 +474,29 @@ pub struct Status {
     pub config: Option<u32>,
     /// The link was lost while a job ran (and the policy applied) since the last hello.
     pub link_lost: bool,
+    /// The host UART's receive errors since the board started (zeros where there is no
+    /// UART): bytes lost or corrupted on the wire, each costing a resent frame.
+    pub line_errors: LineErrors,
+}
+
+/// Receive errors of a serial line, counted since start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LineErrors {
+    /// A byte arrived before the previous one was read (the receiver was late).
+    pub overrun: u32,
+    /// No stop bit where one was due (a baud-rate mismatch, a break, a glitch).
+    pub framing: u32,
+    /// Noise seen by the receiver's oversampling.
+    pub noise: u32,
+    /// Parity errors (only with a misconfigured host: the link uses no parity).
+    pub parity: u32,
+}
+
+impl LineErrors {
+    /// True if any count is non-zero.
+    pub fn any(&self) -> bool {
+        self.overrun | self.framing | self.noise | self.parity != 0
+    }
 }
 
 /// Why a request was not carried out.

@@ -361,6 +361,13 @@ fn describe(s: &Status) -> String {
     if k.estop {
         out.push_str("emergency stop input: ACTIVE\n");
     }
+    let e = &s.line_errors;
+    if e.any() {
+        out.push_str(&format!(
+            "host UART receive errors since start: overrun {}, framing {}, noise {}, parity {} (each costs a resent frame; see docs/bring-up.md)\n",
+            e.overrun, e.framing, e.noise, e.parity
+        ));
+    }
     if s.link_lost {
         out.push_str("the link was lost while the job ran; the link-loss policy applied\n");
     }

@@ -55,6 +55,14 @@ pub const VALVES: [RawPin; 4] = [pa(0), pa(1), pa(2), pa(3)];
 pub const DRIVERS_EN: RawPin = pb(15);
 /// E-stop input (high = stop, from the pull-up when the switch opens).
 pub const ESTOP: RawPin = pc(13);
+/// Status LED (high = on).
+pub const LED: RawPin = pa(5);
+
+/// STEP and DIR edge rate. Medium (RM0090 OSPEEDR 01; datasheet: about 10 ns rise and
+/// fall into 50 pF) is two orders of magnitude faster than any driver needs (DRV8825:
+/// 1.9 us high, 650 ns DIR set-up) and, unlike VeryHigh (about 4 ns), does not ring on
+/// a driver cable long enough to double an edge.
+const STEP_SPEED: Speed = Speed::Medium;
 
 /// Stepper driver timing: the pulse generator's tick must cover all of it.
 #[derive(Clone, Copy)]
@@ -141,7 +149,8 @@ pub fn clocks() -> embassy_stm32::Config {
     c
 }
 
-fn port(p: RawPin) -> pac::gpio::Gpio {
+/// The GPIO port of `p`.
+pub fn port(p: RawPin) -> pac::gpio::Gpio {
     match p.port {
         0 => pac::GPIOA,
         1 => pac::GPIOB,
@@ -171,20 +180,20 @@ pub fn flash_accelerator_on() {
     });
 }
 
-/// The very first thing after reset, before clocks or the HAL: valves closed, drivers
-/// disabled, both driven (the board's pull resistors hold them so until now).
-pub fn safe_at_reset() {
-    pac::RCC.ahb1enr().modify(|w| {
-        w.set_gpioaen(true);
-        w.set_gpioben(true);
-        w.set_gpiocen(true);
-    });
-    force_safe_raw();
-    for p in VALVES.iter().chain([DRIVERS_EN].iter()) {
-        port(*p)
-            .moder()
-            .modify(|w| w.set_moder(p.pin as usize, Moder::OUTPUT));
-    }
+// The safe state at reset is `preinit`'s: valves low, drivers disabled, before RAM is
+// initialised.
+
+/// Makes the status LED an output (for `boot::clock_fault`, which runs before the HAL).
+pub fn led_raw_init() {
+    pac::RCC.ahb1enr().modify(|w| w.0 |= 1 << LED.port);
+    port(LED)
+        .moder()
+        .modify(|w| w.set_moder(LED.pin as usize, Moder::OUTPUT));
+}
+
+/// Drives the status LED through its set/reset register.
+pub fn led_raw(on: bool) {
+    write(LED, on);
 }
 
 /// The safe state through registers only: for the panic and e-stop handlers.
@@ -253,22 +262,22 @@ pub fn parts(p: Peripherals) -> Parts {
         ],
         enable: Output::new(p.PB15, Level::High, Speed::Low),
         step: [
-            Output::new(p.PC6, Level::Low, Speed::VeryHigh),
-            Output::new(p.PC7, Level::Low, Speed::VeryHigh),
-            Output::new(p.PC8, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB6, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB7, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB8, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB9, Level::Low, Speed::VeryHigh),
+            Output::new(p.PC6, Level::Low, STEP_SPEED),
+            Output::new(p.PC7, Level::Low, STEP_SPEED),
+            Output::new(p.PC8, Level::Low, STEP_SPEED),
+            Output::new(p.PB6, Level::Low, STEP_SPEED),
+            Output::new(p.PB7, Level::Low, STEP_SPEED),
+            Output::new(p.PB8, Level::Low, STEP_SPEED),
+            Output::new(p.PB9, Level::Low, STEP_SPEED),
         ],
         dir: [
-            Output::new(p.PB12, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB13, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB14, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB0, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB1, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB10, Level::Low, Speed::VeryHigh),
-            Output::new(p.PB11, Level::Low, Speed::VeryHigh),
+            Output::new(p.PB12, Level::Low, STEP_SPEED),
+            Output::new(p.PB13, Level::Low, STEP_SPEED),
+            Output::new(p.PB14, Level::Low, STEP_SPEED),
+            Output::new(p.PB0, Level::Low, STEP_SPEED),
+            Output::new(p.PB1, Level::Low, STEP_SPEED),
+            Output::new(p.PB10, Level::Low, STEP_SPEED),
+            Output::new(p.PB11, Level::Low, STEP_SPEED),
         ],
         endstops: [
             Input::new(p.PC0, Pull::Up),

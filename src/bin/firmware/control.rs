@@ -1,6 +1,14 @@
 //! The control loop's context on the chip: `dollop::device::Control` with its pins.
 //! Runs in a software interrupt that the step timer pends every 100 us; it never waits.
-//! Also the e-stop's latch, the status LED and the link's millisecond.
+//! Also the e-stop's latch and its input filter, the endstops' filter, the status LED and
+//! the link's millisecond.
+//!
+//! Input filtering (noisy wiring must not halt a print or fake a homing hit): the e-stop
+//! interrupt acts only if the pin reads high on three samples 1 us apart (2 us added to
+//! its latency; a shorter spike is ignored), and the control loop takes the e-stop or an
+//! endstop as changed only when two consecutive periods agree (100 us added; so a missed
+//! e-stop edge is still acted on within 200 us, and at a 20 mm/s homing speed an endstop
+//! is seen 2 um later).
 
 use crate::shared::ControlEnd;
 use crate::{board, host, step, wdg};
@@ -9,6 +17,7 @@ use dollop::device::{Control, EStopGuard, Inputs};
 use dollop::wire::Mode;
 use dollop::{Axis, Outputs};
 use embassy_stm32::gpio::{Input, Output};
+use embassy_stm32::pac;
 
 /// Set by the e-stop interrupt after it forced the safe state; the control loop's outputs
 /// read it after every opening write (so a tick it preempted cannot reopen a valve), and
@@ -23,6 +32,56 @@ pub static PERIODS: AtomicU32 = AtomicU32::new(0);
 pub fn estop_tripped() {
     board::force_safe_raw();
     ESTOP_LATCH.store(true, Ordering::Release);
+}
+
+/// The e-stop pin's level (high = stop), read from the register: shared by the e-stop
+/// interrupt and the control loop. Out of line for the emulator harness, which rewrites
+/// this load with the modelled level (see `ControlCtx::read_pins`).
+#[inline(never)]
+pub fn estop_pin() -> bool {
+    let p = board::ESTOP;
+    board::port(p).idr().read().idr(p.pin as usize) == pac::gpio::vals::Idr::HIGH
+}
+
+/// Samples the e-stop interrupt takes, 1 us apart: all must read high.
+const ESTOP_SAMPLES: u32 = 3;
+
+/// Whether an e-stop edge is real: the pin high on `ESTOP_SAMPLES` samples 1 us apart.
+pub fn estop_confirmed() -> bool {
+    for i in 0..ESTOP_SAMPLES {
+        if i > 0 {
+            cortex_m::asm::delay(board::CORE_HZ / 1_000_000);
+        }
+        if !estop_pin() {
+            return false;
+        }
+    }
+    true
+}
+
+/// A two-sample filter: the output changes only when two consecutive samples agree on
+/// the new level.
+#[derive(Clone, Copy)]
+struct Filter {
+    out: bool,
+    last: bool,
+}
+
+impl Filter {
+    const fn new(level: bool) -> Self {
+        Filter {
+            out: level,
+            last: level,
+        }
+    }
+
+    fn sample(&mut self, level: bool) -> bool {
+        if level == self.last {
+            self.out = level;
+        }
+        self.last = level;
+        self.out
+    }
 }
 
 /// Valves and drivers on pins; steps go to the step generator.
@@ -69,13 +128,16 @@ pub struct ControlCtx {
     pub out: PinOutputs,
     /// Endstops X, Y, Z (low = triggered).
     pub endstops: [Input<'static>; 3],
-    /// E-stop input (high = stop).
-    pub estop: Input<'static>,
+    /// E-stop input (high = stop): owned here so it stays an input with its pull-up;
+    /// read through the register (`estop_pin`), which the e-stop interrupt shares.
+    pub _estop: Input<'static>,
     /// Status LED (high = on).
     pub led: Output<'static>,
     clock: step::Clock,
     periods: u32,
     blink: u32,
+    estop_filter: Filter,
+    endstop_filters: [Filter; 3],
 }
 
 impl ControlCtx {
@@ -91,11 +153,13 @@ impl ControlCtx {
             control,
             out,
             endstops,
-            estop,
+            _estop: estop,
             led,
             clock: step::Clock::new(),
             periods: 0,
             blink: 0,
+            estop_filter: Filter::new(false),
+            endstop_filters: [Filter::new(false); 3],
         }
     }
 
@@ -108,7 +172,7 @@ impl ControlCtx {
     #[inline(never)]
     fn read_pins(&self) -> (bool, [bool; 3]) {
         (
-            self.estop.is_high(),
+            estop_pin(),
             [
                 self.endstops[0].is_low(),
                 self.endstops[1].is_low(),
@@ -121,9 +185,19 @@ impl ControlCtx {
     pub fn on_period(&mut self) {
         let now_us = self.clock.now_us();
         let (estop, endstops) = self.read_pins();
+        let estop = self.estop_filter.sample(estop);
+        let mut filtered = [false; 3];
+        for ((f, raw), out) in self
+            .endstop_filters
+            .iter_mut()
+            .zip(endstops)
+            .zip(filtered.iter_mut())
+        {
+            *out = f.sample(raw);
+        }
         let inputs = Inputs {
             estop: ESTOP_LATCH.swap(false, Ordering::AcqRel) || estop,
-            endstops,
+            endstops: filtered,
         };
         let mut out = EStopGuard {
             out: &mut self.out,

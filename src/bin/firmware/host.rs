@@ -5,7 +5,7 @@
 //! depends only on the step timer's update interrupt, which every emulator and every
 //! board has).
 
-use crate::step;
+use crate::{line, step};
 use core::future::poll_fn;
 use core::sync::atomic::{AtomicU32, Ordering};
 use core::task::Poll;
@@ -89,15 +89,20 @@ impl<D: Driver<'static>> HostPort for UsbPort<D> {
 }
 
 /// The host UART as the host port: always open (a UART has no connection state; a silent
-/// host is the link's timeout to notice).
+/// host is the link's timeout to notice). Its line errors are counted in the interrupt
+/// (`line`) and logged here, in thread mode, when they change.
 pub struct UartPort {
     uart: BufferedUart<'static>,
+    errors: line::Logged,
 }
 
 impl UartPort {
     /// The port on `uart`.
     pub fn new(uart: BufferedUart<'static>) -> Self {
-        UartPort { uart }
+        UartPort {
+            uart,
+            errors: line::Logged::new(),
+        }
     }
 }
 
@@ -106,9 +111,9 @@ impl HostPort for UartPort {
         true
     }
     async fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortClosed> {
-        embedded_io_async::Read::read(&mut self.uart, buf)
-            .await
-            .map_err(|_| PortClosed)
+        let r = embedded_io_async::Read::read(&mut self.uart, buf).await;
+        self.errors.log_changes();
+        r.map_err(|_| PortClosed)
     }
     async fn write(&mut self, data: &[u8]) -> Result<(), PortClosed> {
         embedded_io_async::Write::write_all(&mut self.uart, data)

@@ -1,17 +1,23 @@
 //! dollop's STM32F405 firmware: embassy glue around the board-independent
 //! `dollop::device`. Interrupt priorities, highest first: e-stop (EXTI, forces the safe
-//! state through registers), step pulses (TIM3, 100 kHz), the control loop (UART5 used as
-//! a software interrupt, pended every 10th step tick), then USB and the thread-mode
-//! executor that runs the link. The control loop and the link share only `shared`'s
+//! state through registers), step pulses (TIM3, 100 kHz) and the host UART's receive
+//! (UART4, at the same level: a byte lasts 10 us at 1 Mbaud and must be read before the
+//! next one ends), the control loop (UART5 used as a software interrupt, pended every
+//! 10th step tick), then USB and the thread-mode executor that runs the link. Boot order:
+//! safe outputs before RAM is initialised (`preinit`), the brown-out level, the watchdog,
+//! the crystal with a bounded wait (`boot`), then embassy's clocks. The control loop and the link share only `shared`'s
 //! queues and snapshot. Pins and clocks come from `board`. The big state (control loop,
 //! link) lives in statics built at compile time: nothing large is ever on the stack.
 #![no_std]
 #![no_main]
 
 mod board;
+mod boot;
 mod control;
 mod faults;
 mod host;
+mod line;
+mod preinit;
 mod shared;
 mod step;
 mod store;
@@ -23,6 +29,7 @@ use defmt_rtt as _;
 use dollop::device::{BoardInfo, Control, Link, ResetCause};
 use dollop::wire;
 use embassy_executor::Spawner;
+use embassy_stm32::gpio::Pull;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::peripherals::USB_OTG_FS;
 use embassy_stm32::time::Hertz;
@@ -33,13 +40,14 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::UsbDevice;
-use static_cell::{ConstStaticCell, StaticCell};
+use static_cell::StaticCell;
 use step::Stepper;
 use store::FlashStore;
 
 bind_interrupts!(struct Irqs {
     OTG_FS => usb::InterruptHandler<USB_OTG_FS>;
-    UART4 => usart::BufferedInterruptHandler<embassy_stm32::peripherals::UART4>;
+    // The line-error count first: embassy's handler clears the flags it reads.
+    UART4 => line::CountErrors, usart::BufferedInterruptHandler<embassy_stm32::peripherals::UART4>;
 });
 
 type UsbDriver = Driver<'static, USB_OTG_FS>;
@@ -52,13 +60,14 @@ const INFO: BoardInfo = BoardInfo {
     control_hz: board::CONTROL_HZ,
 };
 
-/// The control loop's state (42 KiB: the executor and its flow model), built by the
-/// compiler in RAM. Moving it through the stack overflowed the 64 KiB stack at boot.
-static CONTROL_STATE: ConstStaticCell<Control> =
-    ConstStaticCell::new(Control::new(ResetCause::PowerOn));
-/// The link's state (6 KiB: frame buffer, chunk window, reply queue), likewise.
-static LINK: ConstStaticCell<Link<FlashStore>> =
-    ConstStaticCell::new(Link::new(FlashStore::new(), INFO));
+/// The control loop's state (58 KiB: the executor, its flow model and speed-ramp window)
+/// and the link's (6 KiB: frame buffer, chunk window, reply queue), in `.bss`: all but
+/// about 40 of their bytes are zeros, and a `const` initialiser would put them in `.data`,
+/// whose whole image is stored in flash and copied at boot. Built in place at start
+/// (`uninit().write`, from a value the compiler cannot fold into a constant), never on the
+/// stack: `.ci/firmware-stack` fails on any frame over 4 KiB.
+static CONTROL_STATE: StaticCell<Control> = StaticCell::new();
+static LINK: StaticCell<Link<FlashStore>> = StaticCell::new();
 
 /// Handed to the interrupts once at start (a reference: the contexts live in statics).
 static STEPPER: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Stepper>>> =
@@ -95,37 +104,24 @@ fn EXTI15_10() {
     let line = board::ESTOP.pin as usize;
     if pac::EXTI.pr(0).read().line(line) {
         pac::EXTI.pr(0).write(|w| w.set_line(line, true));
-        control::estop_tripped();
+        // A spike shorter than the three samples is noise, not an e-stop; a real
+        // opening that bounces raises another edge, and the control loop's filtered
+        // level catches it regardless.
+        if control::estop_confirmed() {
+            control::estop_tripped();
+        }
     }
 }
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
-    // Before anything else: valves closed, drivers disabled.
-    board::safe_at_reset();
-    let reset = if wdg::caused_reset() {
-        ResetCause::Watchdog
-    } else {
-        ResetCause::PowerOn
-    };
-    let p = embassy_stm32::init(board::clocks());
-    board::flash_accelerator_on();
-    // The time driver (TIM5) defaults to the top priority; it must not delay step edges.
-    interrupt::TIM5.set_priority(Priority::P4);
-    wdg::start();
-    defmt::info!(
-        "dollop firmware {} on {}",
-        env!("CARGO_PKG_VERSION"),
-        board::NAME
-    );
-
+    let (p, reset) = boot::start();
     let parts = board::parts(p);
     let mut out = PinOutputs {
         valves: parts.valves,
         enable: parts.enable,
     };
-    let control = CONTROL_STATE.take();
-    control.set_reset_cause(reset);
+    let control = control_state(reset);
     control.power_up(&mut out);
     estop_interrupt();
 
@@ -198,8 +194,13 @@ async fn main(spawner: Spawner) {
     static UART_RX: StaticCell<[u8; 1024]> = StaticCell::new();
     let mut uart_config = usart::Config::default();
     uart_config.baudrate = board::HOST_UART_BAUD;
+    // An unconnected or unpowered host leaves RX floating: noise would make garbage
+    // frames (and switch the link's reply side to the UART).
+    uart_config.rx_pull = Pull::Up;
     let (uart, rx, tx) = parts.uart;
-    interrupt::UART4.set_priority(Priority::P5);
+    // With the step timer: above the control loop (whose tick is 7-12 us, longer than a
+    // byte), below only the e-stop.
+    interrupt::UART4.set_priority(Priority::P1);
     let uart = match usart::BufferedUart::new(
         uart,
         rx,
@@ -216,7 +217,7 @@ async fn main(spawner: Spawner) {
         }
     };
 
-    let link = LINK.take();
+    let link = link_state();
     link.store_mut().attach(parts.flash);
     match usb_task(usb) {
         Ok(t) => spawner.spawn(t),
@@ -230,6 +231,23 @@ async fn main(spawner: Spawner) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("link task did not spawn"),
     }
+}
+
+/// The control loop's state, built in its static (once: a second call panics). Out of
+/// line, so that whatever the compiler stages on the stack while building it is in this
+/// short-lived frame, not in the main task's.
+#[inline(never)]
+fn control_state(reset: ResetCause) -> &'static mut Control {
+    CONTROL_STATE
+        .uninit()
+        .write(Control::new(core::hint::black_box(reset)))
+}
+
+/// The link's state, likewise.
+#[inline(never)]
+fn link_state() -> &'static mut Link<FlashStore> {
+    LINK.uninit()
+        .write(Link::new(FlashStore::new(), core::hint::black_box(INFO)))
 }
 
 /// E-stop on EXTI line 13, port C, rising edge (the normally-closed switch opens).

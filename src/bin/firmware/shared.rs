@@ -4,7 +4,7 @@
 
 use core::cell::{Cell, RefCell};
 use dollop::device::{BoardMachine, FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
-use dollop::wire::Snapshot;
+use dollop::wire::{LineErrors, Snapshot};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
@@ -48,6 +48,21 @@ impl ToControl for LinkEnd {
     fn snapshot(&self) -> Snapshot {
         SNAPSHOT.lock(|s| s.get())
     }
+    fn line_errors(&self) -> LineErrors {
+        let [overrun, framing, noise, parity] = crate::line::counts();
+        LineErrors {
+            overrun,
+            framing,
+            noise,
+            parity,
+        }
+    }
+}
+
+/// Whether the control loop's last published snapshot has the drivers enabled (read by
+/// the job store to put them back after a flash operation).
+pub fn drivers_commanded() -> bool {
+    SNAPSHOT.lock(|s| s.get().drivers)
 }
 
 impl FromLink for ControlEnd {

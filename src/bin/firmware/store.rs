@@ -2,9 +2,14 @@
 //! memory.x). Erasing stalls every fetch from flash (the chip) for up to 2 s a sector at
 //! the 32-bit width set here, so the link erases one sector per poll, only while nothing
 //! moves and every valve is shut (`Link` checks that), with the watchdog lengthened
-//! around it.
+//! around it. Every erase and every program runs with the outputs forced safe through the
+//! registers (`SafeWhileFlashBusy`): while the flash is busy no interrupt can run (vector
+//! table and handlers are in flash), so not even the e-stop could act; with the valves
+//! shut and the drivers disabled beforehand it has nothing left to do. The data cache is
+//! reset after each erase (RM0090 3.5.2), so no read returns the erased sector's old words.
 
-use crate::wdg;
+use crate::{board, control, shared, wdg};
+use core::sync::atomic::Ordering;
 use dollop::device::JobStore;
 use dollop::wire::StoreError;
 use embassy_stm32::flash::{Blocking, Flash};
@@ -62,6 +67,45 @@ fn erase_width_32() {
     f.cr().modify(|w| w.set_psize(Psize::PSIZE32));
 }
 
+/// The outputs forced safe for the life of the guard: valves shut and drivers disabled
+/// through the registers. On drop the drivers are enabled again only if the control loop
+/// still commands them enabled (its last published snapshot) and no e-stop is latched:
+/// an e-stop or a halt while the flash was busy keeps them off. The valves are not
+/// reopened: `Link` erases and writes only while every valve is shut. Nothing reopens
+/// them meanwhile: only the control loop drives them, no job runs during an upload, and
+/// the link, which would hand it orders, is the code that is busy here.
+struct SafeWhileFlashBusy;
+
+impl SafeWhileFlashBusy {
+    fn new() -> Self {
+        board::force_safe_raw();
+        SafeWhileFlashBusy
+    }
+}
+
+impl Drop for SafeWhileFlashBusy {
+    fn drop(&mut self) {
+        // One critical section: neither the control loop nor the e-stop can change the
+        // answer between the test and the write.
+        cortex_m::interrupt::free(|_| {
+            if shared::drivers_commanded() && !control::ESTOP_LATCH.load(Ordering::Acquire) {
+                board::write(board::DRIVERS_EN, false);
+            }
+        });
+    }
+}
+
+/// Resets the flash data cache (RM0090 3.5.2: DCRST works only with the cache disabled),
+/// then turns it on again: ST's HAL does the same after every erase; embassy's F4 driver
+/// does it only on dual-bank parts.
+fn reset_data_cache() {
+    let f = pac::FLASH;
+    f.acr().modify(|w| w.set_dcen(false));
+    f.acr().modify(|w| w.set_dcrst(true));
+    f.acr().modify(|w| w.set_dcrst(false));
+    f.acr().modify(|w| w.set_dcen(true));
+}
+
 impl JobStore for FlashStore {
     fn capacity(&self) -> u32 {
         LEN
@@ -82,7 +126,12 @@ impl JobStore for FlashStore {
         let flash = self.flash().map_err(|_| StoreError::Erase)?;
         wdg::lengthen();
         erase_width_32();
-        let r = flash.blocking_erase(from, from + SECTOR);
+        let r = {
+            let _safe = SafeWhileFlashBusy::new();
+            let r = flash.blocking_erase(from, from + SECTOR);
+            reset_data_cache();
+            r
+        };
         wdg::shorten();
         r.map_err(|_| StoreError::Erase)?;
         self.erased += SECTOR;
@@ -94,6 +143,7 @@ impl JobStore for FlashStore {
             return Err(StoreError::OutOfRange);
         }
         let flash = self.flash().map_err(|_| StoreError::Write)?;
+        let _safe = SafeWhileFlashBusy::new();
         let whole = data.len() / WORD * WORD;
         if whole > 0 {
             flash
