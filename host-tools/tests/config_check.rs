@@ -26,13 +26,13 @@ fn instantaneous_valves_state_the_acceleration_their_worst_step_needs() {
     let out = check("seed-paper.toml");
     // Paste B's supply through a channel full of paste A: 10 mm/s * 3.17 / 1.41 at once
     // when its valve opens; 22.48^2 / (8 * 0.02 * 0.2) mm/s^2 of ramp keeps 2 % over
-    // 0.2 mm, and the ramp gets 1/sqrt(2) of the X/Y limit.
+    // 0.2 mm, and the ramp gets RAMP_SHARE (0.95) of the X/Y limit.
     assert!(
         out.contains("worst flow step         22.48 mm/s at once"),
         "{out}"
     );
     assert!(
-        out.contains("needs 15795 mm/s^2 of ramp, an X/Y limit of 22338 mm/s^2"),
+        out.contains("needs 15795 mm/s^2 of ramp, an X/Y limit of 16627 mm/s^2"),
         "{out}"
     );
     assert!(

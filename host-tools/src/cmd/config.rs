@@ -59,9 +59,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         // What the worst step's ramp needs to keep the section, and the X/Y limit that
         // gives it that (ramps share the limit with corners).
         let need = dollop::config::section_accel(m.flow_step);
-        let cost = m.flow_step * m.flow_step
-            / (8.0 * a_xy * dollop::config::RAMP_SHARE)
-            / dollop::config::SECTION_WINDOW_MM;
+        let cost = m.section_bound();
         println!(
             "  worst flow step         {:.2} mm/s at once: keeping the section within {:.0} % over {} mm needs {:.0} mm/s^2 of ramp, an X/Y limit of {:.0} mm/s^2",
             m.flow_step,
