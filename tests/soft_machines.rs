@@ -10,7 +10,7 @@ mod common;
 use common::*;
 use dollop::config::Config;
 use dollop::RunState;
-use dollop_sim::designs::chessboard;
+use dollop_sim::designs::{chessboard, stripes, Fill};
 use dollop_sim::RunResult;
 
 /// Slack on the acceleration limit for the measurement (f32 positions differenced over
@@ -149,27 +149,46 @@ fn instantaneous_valves_hold_the_section_bound_and_the_limit_on_soft_machines() 
 
 /// The closed form of `Machine::section_bound` for the steps a bead meets between its
 /// ends: a window `w` centred on a step of `dv` lays the section off by `dv w / (8 W)`
-/// over `W` = 0.2 mm. The chessboard's mid-bead steps are paste B's supply through a
-/// channel full of paste A against paste A's (22.48 - 10 mm/s), in the window sized for
-/// the 22.48 mm/s bead starts; the measured section is within 10 % of the closed form.
+/// over `W` = 0.2 mm. The chessboard's and the stripes' mid-bead steps are paste B's
+/// supply through a channel full of paste A against paste A's (22.48 - 10 mm/s), in the
+/// window sized for the 22.48 mm/s bead starts; their measured section is within 10 % of
+/// the closed form, and the short features' within it.
 #[test]
 fn instantaneous_valves_at_5000_meet_the_closed_form() {
     let cfg = soft(5000.0, true);
     let m = cfg.validate::<f64, 4>().unwrap();
-    let r = run(&cfg, &board());
-    let (section, bound, _, _) = assert_soft("chessboard/instant 5000", &cfg, &r);
     let w = m.ramp_cycles as f64 * m.period_us as f64 * 1e-6;
     let dv = m.v_flow_max - cfg.motion.print_speed_mm_s as f64;
     let closed = dv * w / (8.0 * dollop::config::SECTION_WINDOW_MM);
-    eprintln!(
-        "closed form {:.3} % for {dv:.2} mm/s in {:.1} ms; measured {:.3} %; bound {:.3} %",
-        closed * 100.0,
-        w * 1e3,
-        section * 100.0,
-        bound * 100.0
-    );
-    assert!(
-        (section - closed).abs() <= 0.1 * closed,
-        "measured {section} against the closed form {closed}"
-    );
+    let designs = [
+        ("chessboard", board()),
+        ("stripes", job(&fill(24.0, 16, 1), stripes(4.0))),
+        ("short features", {
+            let f = Fill {
+                cell_mm: 0.1,
+                ..fill(9.0, 4, 1)
+            };
+            job(&f, stripes(0.6))
+        }),
+    ];
+    for (name, j) in designs {
+        let r = run(&cfg, &j);
+        let name = format!("{name}/instant 5000");
+        let (section, bound, _, _) = assert_soft(&name, &cfg, &r);
+        eprintln!(
+            "{name}: closed form {:.3} % for {dv:.2} mm/s in {:.1} ms; measured {:.3} %; bound {:.3} %",
+            closed * 100.0,
+            w * 1e3,
+            section * 100.0,
+            bound * 100.0
+        );
+        // Features shorter than the channel switch with a mix in it, so their steps are
+        // smaller than a channel full of one paste gives (measured 3.23 % against 3.82 %):
+        // the closed form bounds them without being met.
+        let low = if name.starts_with("short") { 0.0 } else { 0.9 };
+        assert!(
+            section >= low * closed && section <= 1.1 * closed,
+            "{name}: measured {section} against the closed form {closed}"
+        );
+    }
 }
