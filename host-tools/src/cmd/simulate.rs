@@ -219,8 +219,9 @@ fn section_bound(config: &Config) -> f64 {
 pub const ACCEL_SLACK: f64 = 1.02;
 
 /// What left its bound, as sentences: the bead section over every
-/// `SECTION_WINDOW_MM` of bead against `Machine::section_bound`, and each axis's
-/// acceleration (1 ms differences while a valve is open) against its limit. The report
+/// `SECTION_WINDOW_MM` of bead against `Machine::section_bound`, the corner acceleration
+/// against the X/Y limit, and each axis's acceleration (1 ms differences while a valve is
+/// open) against its limit. The report
 /// prints each after `WARNING:`; the exit status stays 0 (as for a boundary far off:
 /// a fault or a wrong material sequence is what fails a run).
 pub fn warnings(r: &RunResult, config: &Config) -> Vec<String> {
@@ -236,6 +237,13 @@ pub fn warnings(r: &RunResult, config: &Config) -> Vec<String> {
             m.section_long_worst_at[0],
             m.section_long_worst_at[1],
             bound * 100.0
+        ));
+    }
+    let a_xy = config.motion.max_accel_mm_s2[0].min(config.motion.max_accel_mm_s2[1]) as f64;
+    if r.peak_accel > a_xy * ACCEL_SLACK {
+        w.push(format!(
+            "a corner turns the head at {:.0} mm/s^2, over the X/Y limit of {a_xy} mm/s^2 (a fillet the segments leave too little room for, met at speed)",
+            r.peak_accel
         ));
     }
     for (a, axis) in ["X", "Y"].iter().enumerate() {
