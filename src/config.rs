@@ -467,7 +467,7 @@ pub struct Machine<R, const N: usize> {
     /// resistive channel content).
     pub v_flow_max: R,
     /// Corner radius: the one the XY acceleration limit allows at `v_flow_max` (its
-    /// `RAMP_SHARE` when the head ramps through flow steps), mm.
+    /// `CORNER_SHARE` when the head ramps through flow steps), mm.
     pub corner_radius: R,
     /// Largest change of head speed the flow makes faster than the X/Y acceleration limit
     /// follows (a valve whose pressure switches at once), mm/s; 0 when it never does.
@@ -478,6 +478,9 @@ pub struct Machine<R, const N: usize> {
     /// Length of the head's speed ramps, control cycles: odd, 1 when the head follows the
     /// flow as it is (see `crate::ramp`).
     pub ramp_cycles: u32,
+    /// Farthest a speed ramp lays the paste from where the flow put it, mm: the window
+    /// centred on a step of `dv` shifts it by up to `dv w / 8` (see `section_bound`).
+    pub ramp_offset_mm: R,
     /// Flow counted as stopped, mm^3/s.
     pub q_stop: R,
     /// Every inlet is a stepper-driven syringe (else every inlet is pneumatic).
@@ -509,6 +512,7 @@ impl<R: Real, const N: usize> Machine<R, N> {
         flow_step: R::ZERO,
         flow_accel: R::ZERO,
         ramp_cycles: 1,
+        ramp_offset_mm: R::ZERO,
         q_stop: R::ZERO,
         syringes: false,
     };
@@ -525,7 +529,27 @@ impl<R: Real, const N: usize> Machine<R, N> {
     pub fn inlet_count(&self) -> usize {
         self.inlets.len()
     }
+    /// Largest relative error of the bead section over `SECTION_WINDOW_MM` of bead away
+    /// from its ends that this machine allows: `SECTION_BAND`, or where the head ramps
+    /// through a step of the flow, what that ramp forces.
+    ///
+    /// A ramp window `w` centred on a step of `dv` (head speed from `v1` to `v1 + dv`)
+    /// leaves the head ahead of (or behind) the paste by `e(t) = dv (w/2 - |t|)^2 / (2 w)`
+    /// for `|t| < w/2`: `dv w / 8` at the step, nothing outside the window. Over a stretch
+    /// of bead from `s1` to `s1 + W` the paste laid is `W - (e(t2) - e(t1))`, so the
+    /// section is off by at most `dv w / (8 W)`, each side, once the stretch is longer
+    /// than the ramp (a window at 22.5 mm/s and 10 ms covers 0.11 mm). With the window
+    /// just long enough for the step, `w = dv / a`, this is the closed form
+    /// `dv^2 / (8 a W)`: what acceleration `a` physically allows, since any speed change
+    /// of `dv` within `a` leaves some stretch that far off.
+    pub fn section_bound(&self) -> f64 {
+        (self.ramp_offset_mm.to_f64() / SECTION_WINDOW_MM).max(SECTION_BAND)
+    }
 }
+
+/// Relative error of the bead section over `SECTION_WINDOW_MM` that the flow and the head
+/// hold where no step of the flow forces more.
+pub const SECTION_BAND: f64 = 0.01;
 
 struct Check {
     section: &'static str,
@@ -603,10 +627,16 @@ fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
 }
 
 /// Share of the X/Y acceleration limit a speed ramp may use when the head ramps through
-/// flow steps; corners get the same share. A ramp on a fillet adds its tangential
-/// acceleration to the centripetal one at right angles, so on any one axis the two sum to
-/// at most `sqrt(2)` times the share: the limit.
-pub const RAMP_SHARE: f64 = core::f64::consts::FRAC_1_SQRT_2;
+/// flow steps; corners get `CORNER_SHARE`. A ramp on a fillet adds its tangential
+/// acceleration to the centripetal one at right angles, so their vector sum, and with it
+/// each axis, stays within the limit when `RAMP_SHARE^2 + CORNER_SHARE^2 = 1`. The ramp
+/// gets the larger part: its window is what costs the bead its section (a centred ramp
+/// lays the paste up to `dv^2 / (8 a)` mm off), a corner's radius only rounds the path
+/// more where the design turns.
+pub const RAMP_SHARE: f64 = 0.95;
+/// Share of the X/Y acceleration limit the corner fillets use on a machine whose head
+/// ramps through flow steps: `sqrt(1 - RAMP_SHARE^2)`.
+pub const CORNER_SHARE: f64 = 0.312_249_899_919_951_9;
 
 /// Bead section tolerance over `SECTION_WINDOW_MM` of bead that `section_accel` is for.
 pub const SECTION_TOLERANCE: f64 = 0.02;
@@ -620,9 +650,78 @@ pub fn section_accel(step: f64) -> f64 {
     step * step / (8.0 * SECTION_TOLERANCE * SECTION_WINDOW_MM)
 }
 
-/// Pneumatic inlets: the largest head speed step faster than `a_xy` (valve opening,
-/// closing or switching with a channel full of any one material: a mix lies between) and
-/// the largest acceleration the flow asks for where it ramps within `a_xy`.
+/// Shortest ramp window (s) that takes the head through a change of flow speed within
+/// acceleration `a`: a change of `dv` in all (mm/s) that a line of time constant `tau`
+/// (s) makes, moving from or towards speed `v`, so at most `v / tau` at its start.
+///
+/// The head at the mean of a window `w` of the planned positions accelerates by the
+/// planned speed's change across the window over `w`. A first-order response changes the
+/// speed by at most `v (1 - exp(-w / tau))` within any `w` (its steepest stretch is its
+/// start), and never by more than `dv`; the window is the shortest `w` for which that
+/// over `w` is within `a`. A step (`tau = 0`) needs `dv / a`; a response already within
+/// `a` needs none. Treating a fast first-order response as a step sized the window of a
+/// machine with real valves several times too long, and the window's mean then smeared
+/// the flow's own smooth changes over the bead (issue 22).
+pub fn ramp_window(dv: f64, v: f64, tau: f64, a: f64) -> f64 {
+    if dv.is_nan() || a.is_nan() || dv <= 0.0 || a <= 0.0 {
+        return 0.0;
+    }
+    let step = dv / a;
+    if tau.is_nan() || tau <= 0.0 {
+        return step;
+    }
+    if v / tau <= a {
+        return 0.0;
+    }
+    let change = |w: f64| dv.min(v * (1.0 - libm::exp(-w / tau)));
+    // `change(w) / w` falls with `w`; `step` always suffices. Bisection to 0.1 us.
+    let (mut lo, mut hi) = (0.0f64, step);
+    while hi - lo > 1e-7 {
+        let mid = 0.5 * (lo + hi);
+        if change(mid) <= a * mid {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
+/// What the flow asks of the head: the largest change of head speed faster than the X/Y
+/// limit follows (mm/s, 0 if none), the largest acceleration the flow asks for where it
+/// stays within that limit (mm/s^2), and the ramp window its faster changes need at
+/// `RAMP_SHARE` of the limit (s).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct FlowDemand {
+    step: f64,
+    /// The largest of those changes made at once (a valve whose pressure switches at
+    /// once, a syringe's lag taken as a step), mm/s.
+    instant: f64,
+    accel: f64,
+    window_s: f64,
+}
+
+impl FlowDemand {
+    /// A change of `dv` by a line of time constant `tau` moving at up to `v`.
+    fn event(&mut self, dv: f64, tau: f64, v: f64, a_xy: f64) {
+        // A first-order pressure change moves the flow at most `v / tau` (its start).
+        let a = if tau > 0.0 { v / tau } else { f64::INFINITY };
+        if a > a_xy {
+            self.step = self.step.max(dv);
+            if tau.is_nan() || tau <= 0.0 {
+                self.instant = self.instant.max(dv);
+            }
+        } else {
+            self.accel = self.accel.max(a);
+        }
+        self.window_s = self
+            .window_s
+            .max(ramp_window(dv, v, tau, a_xy * RAMP_SHARE));
+    }
+}
+
+/// Pneumatic inlets: the flow's demand (valve opening, closing or switching with a
+/// channel full of any one material: a mix lies between).
 fn valve_steps<R: Real, const N: usize>(
     inlets: &[Inlet<R>],
     laws: &heapless::Vec<FlowLaw<f64>, N>,
@@ -630,28 +729,14 @@ fn valve_steps<R: Real, const N: usize>(
     v_channel: f64,
     s: f64,
     a_xy: f64,
-) -> (f64, f64) {
-    let mut step = 0.0f64;
-    let mut accel = 0.0f64;
-    let mut event = |dv: f64, tau: f64, v_moving: f64| {
-        // A first-order pressure change moves the flow at most `v / tau` (its start).
-        let a = if tau > 0.0 {
-            v_moving / tau
-        } else {
-            f64::INFINITY
-        };
-        if a > a_xy {
-            step = step.max(dv);
-        } else {
-            accel = accel.max(a);
-        }
-    };
+) -> FlowDemand {
+    let mut d = FlowDemand::default();
     for law in laws.iter() {
         for (j, &pj) in supplies.iter().enumerate() {
             let vj = flow_full(law, pj, v_channel) / s;
             let (rise_j, decay_j) = (inlets[j].rise_s.to_f64(), inlets[j].decay_s.to_f64());
-            event(vj, rise_j, vj);
-            event(vj, decay_j, vj);
+            d.event(vj, rise_j, vj, a_xy);
+            d.event(vj, decay_j, vj, a_xy);
             for (i, &pi) in supplies.iter().enumerate() {
                 if i == j {
                     continue;
@@ -664,11 +749,11 @@ fn valve_steps<R: Real, const N: usize>(
                 } else {
                     (decay_i, vi)
                 };
-                event((vj - vi).abs(), tau, v);
+                d.event((vj - vi).abs(), tau, v, a_xy);
             }
         }
     }
-    (step, accel)
+    d
 }
 
 /// Syringes: a plunger start, stop or switch moves the flow through the Weibull lag
@@ -679,9 +764,8 @@ fn syringe_steps<R: Real>(
     print_speed: f64,
     v_flow_max: f64,
     a_xy: f64,
-) -> (f64, f64) {
-    let mut step = 0.0f64;
-    let mut accel = 0.0f64;
+) -> FlowDemand {
+    let mut d = FlowDemand::default();
     for sy in inlets.iter().filter_map(|i| i.syringe) {
         let (k, n) = (sy.lag_k.to_f64(), sy.lag_n.to_f64());
         let slope = if n < 1.0 {
@@ -696,12 +780,15 @@ fn syringe_steps<R: Real>(
         // `slope` of the print speed per second.
         let a = print_speed * slope;
         if a > a_xy {
-            step = step.max(v_flow_max);
+            d.step = d.step.max(v_flow_max);
+            d.instant = d.instant.max(v_flow_max);
+            // Ramped as a step: a Weibull lag is no first-order response.
+            d.window_s = d.window_s.max(v_flow_max / (a_xy * RAMP_SHARE));
         } else {
-            accel = accel.max(a);
+            d.accel = d.accel.max(a);
         }
     }
-    (step, accel)
+    d
 }
 
 impl Config {
@@ -1057,14 +1144,15 @@ impl Config {
             ));
         }
         let a_xy = m.max_accel_mm_s2[0].min(m.max_accel_mm_s2[1]) as f64;
-        let (flow_step, flow_accel) = if self.inlets.iter().all(|x| x.syringe.is_some()) {
+        let demand = if self.inlets.iter().all(|x| x.syringe.is_some()) {
             syringe_steps(&inlets, print_speed, v_flow_max, a_xy)
         } else {
             valve_steps(&inlets, &laws, &supplies, v_channel, s, a_xy)
         };
+        let (flow_step, flow_accel) = (demand.step, demand.accel);
         let dt = period_us as f64 * 1e-6;
         let (corner_share, ramp_cycles) = if flow_step > 0.0 {
-            let t = flow_step / (a_xy * RAMP_SHARE);
+            let t = demand.window_s;
             let cycles = libm::ceil(t / dt) as u64 | 1;
             if cycles > crate::ramp::RAMP_CAPACITY as u64 - 1 {
                 return Err(mc.err(
@@ -1076,7 +1164,7 @@ impl Config {
                     },
                 ));
             }
-            (RAMP_SHARE, cycles as u32)
+            (CORNER_SHARE, cycles as u32)
         } else {
             (1.0, 1)
         };
@@ -1103,6 +1191,7 @@ impl Config {
             flow_step: R::of(flow_step),
             flow_accel: R::of(flow_accel),
             ramp_cycles,
+            ramp_offset_mm: R::of(demand.instant * ramp_cycles as f64 * dt / 8.0),
             q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
             syringes: self.inlets.iter().all(|x| x.syringe.is_some()),
         })
@@ -1218,9 +1307,9 @@ mod tests {
     }
 
     /// The seed printhead's instantaneous valves step the head speed by 22.48 mm/s (paste
-    /// B's supply through a channel full of paste A): ramps sized to it at 1/sqrt(2) of
-    /// the limit; pressure rise and decay remove them; a limit whose ramp outlasts the
-    /// window is refused, naming the field.
+    /// B's supply through a channel full of paste A): ramps sized to it at `RAMP_SHARE`
+    /// of the limit, corners at `CORNER_SHARE`; pressure rise and decay remove them; a
+    /// limit whose ramp outlasts the window is refused, naming the field.
     #[test]
     fn flow_steps_size_the_speed_ramps() {
         let m = seed().validate::<f64, 2>().unwrap();
@@ -1231,7 +1320,8 @@ mod tests {
         );
         let t = m.flow_step / (2000.0 * RAMP_SHARE);
         assert_eq!(m.ramp_cycles, (libm::ceil(t / 1e-4) as u32) | 1);
-        assert!((m.corner_radius - m.v_flow_max.powi(2) / (2000.0 * RAMP_SHARE)).abs() < 1e-9);
+        assert!((m.corner_radius - m.v_flow_max.powi(2) / (2000.0 * CORNER_SHARE)).abs() < 1e-9);
+        assert!((RAMP_SHARE.powi(2) + CORNER_SHARE.powi(2) - 1.0).abs() < 1e-12);
         let mut c = seed();
         for i in c.inlets.iter_mut() {
             i.pressure_rise_ms = 30.0;
@@ -1245,10 +1335,30 @@ mod tests {
             m.flow_accel
         );
         let mut c = seed();
-        c.motion.max_accel_mm_s2 = [500.0, 500.0, 200.0];
+        c.motion.max_accel_mm_s2 = [400.0, 400.0, 200.0];
         let e = c.validate::<f64, 2>().unwrap_err();
         assert_eq!(e.field.key, "max_accel_mm_s2");
         assert!(matches!(e.problem, Problem::RampTooLong { .. }), "{e:?}");
+    }
+
+    /// A first-order response is ramped over the window its own steepest stretch needs,
+    /// not over a step's: the issue-22 machine's 20 ms decay from 22.48 mm/s (1 124
+    /// mm/s^2 at its start) at 900 mm/s^2. Checked against the response integrated.
+    #[test]
+    fn ramp_windows_follow_the_response() {
+        let (v, tau, a) = (22.48, 0.02, 900.0);
+        let w = ramp_window(12.48, v, tau, a);
+        // 9.2 ms, two thirds of the 13.9 ms a step of 12.48 mm/s would need.
+        assert!(w > 0.0 && w < 0.7 * 12.48 / a, "{w}");
+        // The speed's largest change over any window of `w` (from the response's start,
+        // where it is steepest) is within `a w`, and a tenth shorter it is not.
+        let change = |w: f64| v * (1.0 - libm::exp(-w / tau));
+        assert!(change(w) <= a * w * (1.0 + 1e-6));
+        assert!(change(0.9 * w) > a * 0.9 * w);
+        // A step needs dv / a; a response within the limit, none.
+        assert_eq!(ramp_window(10.0, 10.0, 0.0, 500.0), 0.02);
+        assert_eq!(ramp_window(10.0, 10.0, 0.03, 500.0), 0.0);
+        assert_eq!(ramp_window(0.0, 10.0, 0.0, 500.0), 0.0);
     }
 
     #[test]

@@ -126,8 +126,8 @@ fn firmware_section(c: &Config, s: &Sliced) -> f64 {
 fn run_gcode_with_ideal_valves_meets_the_goals_where_the_firmware_itself_does_not() {
     // With ideal valves the flow jumps at a switch (the head from 10 to 22 mm/s on this
     // machine) faster than 2000 mm/s^2 lets any head follow. The firmware ramps through
-    // such jumps at 1/sqrt(2) of the limit, sized to the worst one, and strays 0.12 to 0.15
-    // of S. The G-code is sampled from a run without those ramps and each jump is put
+    // such jumps at 0.95 of the limit (RAMP_SHARE), sized to the worst one, and strays
+    // 0.088 to 0.112 of S. The G-code is sampled from a run without those ramps and each jump is put
     // half-way through the firmware planner's own ramp at the full limit: dv^2 / 8a of
     // bead short before it and over after, within the goal.
     let c = config(true);

@@ -93,8 +93,8 @@ pub struct RunResult {
     /// Largest distance between the commanded step position and the planned position,
     /// in microsteps, over all cycles and axes.
     pub worst_step_error: f64,
-    /// Largest centripetal acceleration on print moves, mm/s^2 (speed squared times the
-    /// curvature through points 0.02 mm apart).
+    /// Largest centripetal acceleration on print moves, mm/s^2 (the head's speed over
+    /// points 0.02 mm apart, squared, times the curvature through them).
     pub peak_accel: f64,
     /// Most material slugs in the channel and filament at once while printing.
     pub max_slugs: u8,
@@ -172,7 +172,7 @@ pub fn run_with_plant<R: Real>(
 
     let mut peak_accel = 0.0f64;
     let mut axis_accel = AxisAccel::new(dt);
-    let mut hist: [[f64; 2]; 3] = [[f64::NAN; 2]; 3];
+    let mut hist: [[f64; 3]; 3] = [[f64::NAN; 3]; 3];
     let mut max_slugs = 0u8;
     let mut landing_prev = job.initial_material;
     // Saturates to u64::MAX for an infinite limit (and to 0 for a NaN one).
@@ -292,13 +292,15 @@ pub fn run_with_plant<R: Real>(
             // for the f32 position's rounding.
             let d = ((pos[0] - hist[2][0]).powi(2) + (pos[1] - hist[2][1]).powi(2)).sqrt();
             if hist[2][0].is_nan() || d >= ACCEL_BASE_MM {
-                hist = [hist[1], hist[2], pos];
-                let speed = report.speed.to_f64();
+                hist = [hist[1], hist[2], [pos[0], pos[1], t]];
+                // The head's own speed over the three points: with speed ramps the
+                // report's (the plan's) runs half a window ahead of the position.
+                let speed = path_speed(&hist);
                 peak_accel = peak_accel.max(speed * speed * curvature(&hist));
                 max_slugs = max_slugs.max(report.slugs);
             }
         } else {
-            hist = [[f64::NAN; 2]; 3];
+            hist = [[f64::NAN; 3]; 3];
         }
         observe(&Cycle {
             t_s: t,
@@ -339,8 +341,19 @@ const RATE_WINDOW: u64 = 20;
 /// Spacing of the points the path curvature is taken from, mm.
 const ACCEL_BASE_MM: f64 = 0.02;
 
+/// Mean speed (mm/s) along three timed points `[x, y, t]`; 0 where undefined.
+fn path_speed(h: &[[f64; 3]; 3]) -> f64 {
+    let dt = h[2][2] - h[0][2];
+    if h.iter().any(|p| p[0].is_nan()) || dt <= 0.0 {
+        return 0.0;
+    }
+    let a = ((h[1][0] - h[0][0]).powi(2) + (h[1][1] - h[0][1]).powi(2)).sqrt();
+    let b = ((h[2][0] - h[1][0]).powi(2) + (h[2][1] - h[1][1]).powi(2)).sqrt();
+    (a + b) / dt
+}
+
 /// Curvature (1/mm) of the circle through three points; 0 where undefined.
-fn curvature(h: &[[f64; 2]; 3]) -> f64 {
+fn curvature(h: &[[f64; 3]; 3]) -> f64 {
     if h.iter().any(|p| p[0].is_nan()) {
         return 0.0;
     }

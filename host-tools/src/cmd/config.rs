@@ -55,13 +55,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     println!("  corner radius           {:.3} mm", m.corner_radius);
     let a_xy = config.motion.max_accel_mm_s2[0].min(config.motion.max_accel_mm_s2[1]) as f64;
-    if m.flow_step > 0.0 {
+    if m.flow_step > 0.0 && m.ramp_offset_mm <= 0.0 {
+        // Pressure changes faster than the limit, but none at once: the window is what
+        // their first-order responses need (`config::ramp_window`).
+        println!(
+            "  worst flow change       {:.2} mm/s, faster than the X/Y limit of {a_xy} mm/s^2 follows (pressure rise/decay): speed ramps {:.1} ms, section bound {:.1} % over {} mm",
+            m.flow_step,
+            m.ramp_cycles as f64 * m.period_us as f64 * 1e-3,
+            m.section_bound() * 100.0,
+            dollop::config::SECTION_WINDOW_MM,
+        );
+    } else if m.flow_step > 0.0 {
         // What the worst step's ramp needs to keep the section, and the X/Y limit that
         // gives it that (ramps share the limit with corners).
         let need = dollop::config::section_accel(m.flow_step);
-        let cost = m.flow_step * m.flow_step
-            / (8.0 * a_xy * dollop::config::RAMP_SHARE)
-            / dollop::config::SECTION_WINDOW_MM;
+        let cost = m.section_bound();
         println!(
             "  worst flow step         {:.2} mm/s at once: keeping the section within {:.0} % over {} mm needs {:.0} mm/s^2 of ramp, an X/Y limit of {:.0} mm/s^2",
             m.flow_step,

@@ -166,6 +166,18 @@ pub fn report_text(
         "bead section      {:.4} .. {:.4} of S = {:.3} mm^2 (over every 0.02 mm of bead)\n",
         m.section_range.0, m.section_range.1, r.bead_area
     ));
+    let bound = section_bound(config);
+    s.push_str(&format!(
+        "section 0.2 mm    {:.4} .. {:.4} of S over every {} mm of bead (bound: within {:.2} %)\n",
+        m.section_long_range.0,
+        m.section_long_range.1,
+        dollop::config::SECTION_WINDOW_MM,
+        bound * 100.0
+    ));
+    s.push_str(&format!(
+        "axis accel        X {:.0}, Y {:.0} mm/s^2 at most while a valve is open (1 ms differences; limits X {}, Y {})\n",
+        r.axis_accel[0], r.axis_accel[1], config.motion.max_accel_mm_s2[0], config.motion.max_accel_mm_s2[1]
+    ));
     s.push_str(&format!(
         "peak step rate    X {:.0}, Y {:.0}, Z {:.0} steps/s (drivers take {:.0})\n",
         r.peak_step_rate[0], r.peak_step_rate[1], r.peak_step_rate[2], limit
@@ -178,6 +190,9 @@ pub fn report_text(
         "off the path      {:.4} mm^3 landed between beads\n",
         m.off_path_volume
     ));
+    for w in warnings(r, config) {
+        s.push_str(&format!("WARNING: {w}\n"));
+    }
     s.push_str(&format!(
         "metered by        {}\n",
         if plant {
@@ -187,6 +202,60 @@ pub fn report_text(
         }
     ));
     s
+}
+
+/// The section bound over `SECTION_WINDOW_MM` the machine allows (`Machine::section_bound`:
+/// 1 %, or what its ramps through the flow's steps force); 1 % for a config that does not
+/// validate (the run would not have happened).
+fn section_bound(config: &Config) -> f64 {
+    config
+        .validate::<f64, { slicer::INLETS }>()
+        .map(|m| m.section_bound())
+        .unwrap_or(dollop::config::SECTION_BAND)
+}
+
+/// Slack on the X/Y acceleration limit for the measurement: 1 ms second differences of
+/// an f32 position 50 mm from the origin carry a few mm/s^2 of rounding.
+pub const ACCEL_SLACK: f64 = 1.02;
+
+/// What left its bound, as sentences: the bead section over every
+/// `SECTION_WINDOW_MM` of bead against `Machine::section_bound`, the corner acceleration
+/// against the X/Y limit, and each axis's acceleration (1 ms differences while a valve is
+/// open) against its limit. The report
+/// prints each after `WARNING:`; the exit status stays 0 (as for a boundary far off:
+/// a fault or a wrong material sequence is what fails a run).
+pub fn warnings(r: &RunResult, config: &Config) -> Vec<String> {
+    let mut w = Vec::new();
+    let m = &r.metrics;
+    let bound = section_bound(config);
+    let off = m.worst_section_long();
+    if off > bound {
+        w.push(format!(
+            "the bead section leaves its bound: {:.2} % off over {} mm of bead (at x {:.2}, y {:.2} mm), bound {:.2} %",
+            off * 100.0,
+            dollop::config::SECTION_WINDOW_MM,
+            m.section_long_worst_at[0],
+            m.section_long_worst_at[1],
+            bound * 100.0
+        ));
+    }
+    let a_xy = config.motion.max_accel_mm_s2[0].min(config.motion.max_accel_mm_s2[1]) as f64;
+    if r.peak_accel > a_xy * ACCEL_SLACK {
+        w.push(format!(
+            "a corner turns the head at {:.0} mm/s^2, over the X/Y limit of {a_xy} mm/s^2 (a fillet the segments leave too little room for, met at speed)",
+            r.peak_accel
+        ));
+    }
+    for (a, axis) in ["X", "Y"].iter().enumerate() {
+        let limit = config.motion.max_accel_mm_s2[a] as f64;
+        if r.axis_accel[a] > limit * ACCEL_SLACK {
+            w.push(format!(
+                "{axis} accelerates at {:.0} mm/s^2 (at {:.3} s), over its limit of {limit} mm/s^2",
+                r.axis_accel[a], r.axis_accel_at[a]
+            ));
+        }
+    }
+    w
 }
 
 /// Runs `dollop simulate`.
@@ -266,6 +335,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     output::commit(staged)?;
     if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
         print!("{}", report_text(&result, &config, plant, wall));
+    } else {
+        for w in warnings(&result, &config) {
+            eprintln!("dollop: WARNING: {w}");
+        }
     }
     if let Some(f) = result.fault {
         anyhow::bail!("{job_name}: the job ended in a fault: {f}");

@@ -1,0 +1,194 @@
+//! Whole jobs on soft machines (X/Y limited to 500 and 1 000 mm/s^2, issue 22): the
+//! seed printhead with real valves (10 ms dead time, 30/20 ms pressure rise/decay) and
+//! with instantaneous ones. Each run asserts the bead section over every 0.2 mm of bead
+//! against the machine's bound (`Machine::section_bound`: 1 %, or what a ramp through a
+//! step of the flow forces) and each axis's peak acceleration from 1 ms central
+//! differences of the commanded head position while a valve is open. The stiffer
+//! machines of `whole_jobs.rs` never showed the regression these pin down.
+
+mod common;
+use common::*;
+use dollop::config::Config;
+use dollop::RunState;
+use dollop_sim::designs::{chessboard, stripes, Fill};
+use dollop_sim::RunResult;
+
+/// Slack on the acceleration limit for the measurement (f32 positions differenced over
+/// 1 ms), as `whole_jobs.rs` allows.
+const ACCEL_SLACK: f64 = 1.02;
+
+/// The issue's machine (the seed printhead, nozzle at layer height, real valves) at X/Y
+/// limit `a`, its valves made instantaneous if `instant`.
+fn soft(a: f32, instant: bool) -> Config {
+    let path = format!(
+        "{}/host-tools/tests/data/soft-real-valves.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut c: Config = toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"));
+    c.motion.max_accel_mm_s2[0] = a;
+    c.motion.max_accel_mm_s2[1] = a;
+    if instant {
+        for i in c.inlets.iter_mut() {
+            i.valve_open_delay_ms = 0.0;
+            i.valve_close_delay_ms = 0.0;
+            i.pressure_rise_ms = 0.0;
+            i.pressure_decay_ms = 0.0;
+        }
+    }
+    c
+}
+
+/// Checks a run against the machine's bounds; returns (section off over 0.2 mm, its
+/// bound, X and Y peak acceleration).
+fn assert_soft(name: &str, cfg: &Config, r: &RunResult) -> (f64, f64, f64, f64) {
+    summary(name, r);
+    let m = cfg.validate::<f64, 4>().unwrap();
+    assert_eq!(r.state, RunState::Done, "{name}: {:?}", r.fault);
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{name}: {:?}",
+        r.metrics.mismatches
+    );
+    assert!(r.metrics.boundaries.len() >= 40, "{name}: few boundaries");
+    let worst = r.metrics.worst_boundary();
+    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    let section = r.metrics.worst_section_long();
+    let bound = m.section_bound();
+    eprintln!(
+        "{name}: ramp window {} cycles, section off {:.3} % over 0.2 mm (bound {:.3} %), X {:.0} Y {:.0} mm/s^2",
+        m.ramp_cycles,
+        section * 100.0,
+        bound * 100.0,
+        r.axis_accel[0],
+        r.axis_accel[1]
+    );
+    assert!(
+        section <= bound,
+        "{name}: section off by {:.3} % over 0.2 mm (bound {:.3} %)",
+        section * 100.0,
+        bound * 100.0
+    );
+    for (a, axis) in ["X", "Y"].iter().enumerate() {
+        let limit = m.motion.max_accel[a];
+        assert!(
+            r.axis_accel[a] <= limit * ACCEL_SLACK,
+            "{name}: {axis} at {:.0} mm/s^2 (at {:.4} s) over the {limit} limit",
+            r.axis_accel[a],
+            r.axis_accel_at[a]
+        );
+    }
+    (section, bound, r.axis_accel[0], r.axis_accel[1])
+}
+
+/// 4 mm squares (the chessboard PNG's at the default pitch, as sliced): every square is
+/// longer than the 2.5 mm of bead the channel holds.
+fn board() -> dollop_sim::Job {
+    job(&fill(24.0, 16, 1), chessboard(4.0))
+}
+
+#[test]
+fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
+    for a in [1000.0f32, 2000.0] {
+        let cfg = soft(a, false);
+        let (section, bound, _, _) = assert_soft(
+            &format!("chessboard/real valves {a}"),
+            &cfg,
+            &run(&cfg, &board()),
+        );
+        // Real valves ramp the flow themselves: no step forces more than 1 %.
+        assert_eq!(bound, dollop::config::SECTION_BAND, "{a}");
+        assert!(section <= 0.01, "{a}: {section}");
+    }
+}
+
+/// Known limit at 500 mm/s^2: paste B's line closing into a channel full of paste A
+/// slows the head at up to 1 124 mm/s^2, so the one ramp window the machine has must be
+/// 44.6 ms long, and every other change of the flow is smeared over it too: the axes keep
+/// their limit, the section does not keep 1 % (measured 18.9 % off over 0.2 mm here, 15.4 %
+/// on the 48 px chessboard PNG as sliced). Windows
+/// sized per change of the flow would keep both; this measures the limit until then.
+#[test]
+fn real_valves_at_500_keep_the_limit_and_the_known_section_cost() {
+    let cfg = soft(500.0, false);
+    let r = run(&cfg, &board());
+    summary("chessboard/real valves 500", &r);
+    assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{:?}",
+        r.metrics.mismatches
+    );
+    assert!(r.metrics.worst_boundary() <= 0.05);
+    for a in 0..2 {
+        assert!(
+            r.axis_accel[a] <= 500.0 * ACCEL_SLACK,
+            "axis {a}: {}",
+            r.axis_accel[a]
+        );
+    }
+    let section = r.metrics.worst_section_long();
+    assert!(
+        section <= 0.2,
+        "section off by {:.2} % over 0.2 mm",
+        section * 100.0
+    );
+}
+
+#[test]
+fn instantaneous_valves_hold_the_section_bound_and_the_limit_on_soft_machines() {
+    for a in [500.0f32, 1000.0] {
+        let cfg = soft(a, true);
+        assert_soft(
+            &format!("chessboard/instant {a}"),
+            &cfg,
+            &run(&cfg, &board()),
+        );
+    }
+}
+
+/// The closed form of `Machine::section_bound` for the steps a bead meets between its
+/// ends: a window `w` centred on a step of `dv` lays the section off by `dv w / (8 W)`
+/// over `W` = 0.2 mm. The chessboard's and the stripes' mid-bead steps are paste B's
+/// supply through a channel full of paste A against paste A's (22.48 - 10 mm/s), in the
+/// window sized for the 22.48 mm/s bead starts; their measured section is within 10 % of
+/// the closed form, and the short features' within it.
+#[test]
+fn instantaneous_valves_at_5000_meet_the_closed_form() {
+    let cfg = soft(5000.0, true);
+    let m = cfg.validate::<f64, 4>().unwrap();
+    let w = m.ramp_cycles as f64 * m.period_us as f64 * 1e-6;
+    let dv = m.v_flow_max - cfg.motion.print_speed_mm_s as f64;
+    let closed = dv * w / (8.0 * dollop::config::SECTION_WINDOW_MM);
+    let designs = [
+        ("chessboard", board()),
+        ("stripes", job(&fill(24.0, 16, 1), stripes(4.0))),
+        ("short features", {
+            let f = Fill {
+                cell_mm: 0.1,
+                ..fill(9.0, 4, 1)
+            };
+            job(&f, stripes(0.6))
+        }),
+    ];
+    for (name, j) in designs {
+        let r = run(&cfg, &j);
+        let name = format!("{name}/instant 5000");
+        let (section, bound, _, _) = assert_soft(&name, &cfg, &r);
+        eprintln!(
+            "{name}: closed form {:.3} % for {dv:.2} mm/s in {:.1} ms; measured {:.3} %; bound {:.3} %",
+            closed * 100.0,
+            w * 1e3,
+            section * 100.0,
+            bound * 100.0
+        );
+        // Features shorter than the channel switch with a mix in it, so their steps are
+        // smaller than a channel full of one paste gives (measured 3.23 % against 3.82 %):
+        // the closed form bounds them without being met.
+        let low = if name.starts_with("short") { 0.0 } else { 0.9 };
+        assert!(
+            section >= low * closed && section <= 1.1 * closed,
+            "{name}: measured {section} against the closed form {closed}"
+        );
+    }
+}
