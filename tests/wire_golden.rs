@@ -295,6 +295,12 @@ fn messages() -> Vec<(&'static str, String)> {
         ),
         ("refused_estop", Refusal::EStopActive),
         ("refused_store", Refusal::Store(StoreError::Erase)),
+        (
+            "refused_not_paused",
+            Refusal::NotPaused {
+                run: RunState::Printing,
+            },
+        ),
     ];
     for (name, r) in refusals {
         v.push((name, device(&Reply::Refused(r))));
@@ -303,7 +309,7 @@ fn messages() -> Vec<(&'static str, String)> {
 }
 
 const GOLDEN: &[(&str, &str)] = &[
-    ("hello", "04b424010601013bf07a00"),
+    ("hello", "04b424010602bb6af9e300"),
     ("status", "09b4240201f9ba21c900"),
     ("load_config", "19b4240302cdcc4c3f9a991940cdcc4c3f9a99193fcdcc4c3f010103a0420103a0420103c84301010101010101010101010101034843010348430103c84201031643010316430103a0410103fa440103fa4401034843010320410103f0410103a0420e504347010ad7a33b904e01014105e17ab43f010348430101010101010101010101010101010105bd8fe16a00"),
     ("settings", "05b42404030202020101020101032041010106401604cae900"),
@@ -319,7 +325,7 @@ const GOLDEN: &[(&str, &str)] = &[
     ("home", "09b4240e0ddeb9226c00"),
     ("jog", "0cb4240f0e018727dfc2ee6700"),
     ("valve", "0bb424100f01017168813100"),
-    ("reply_hello", "06b424070803310105302e312e300b646f6c6c6f702d66343035800208808030018486880802effdb6f50de8078486880880041ef29d9d00"),
+    ("reply_hello", "06b424070803310205302e312e300b646f6c6c6f702d66343035800208808030018486880802effdb6f50de807848688088004b8bae5e300"),
     ("reply_ack", "0bb42407080301507336cb00"),
     ("reply_status_empty", "09b42407080302050102010b0102f2c0010bb0094d02010328410103a040075001848688080598996e8600"),
     ("reply_status_preparing", "09b42407080302050102010b0102f2c0010bb0094d02010328410115a04001effdb6f50de8078486880850018486880805d45b0a5e00"),
@@ -349,6 +355,7 @@ const GOLDEN: &[(&str, &str)] = &[
     ("refused_halted", "0eb424070803031301020acd291b00"),
     ("refused_estop", "0cb4240708030314f53e4e9100"),
     ("refused_store", "0db424070803031501f7a6587100"),
+    ("refused_not_paused", "0db424070803031801bad8f6c400"),
 ];
 
 #[test]
