@@ -137,8 +137,9 @@ pub enum RunState {
     Aborted,
     /// Stopped by a fault.
     Faulted,
-    /// A pause was requested: valves shut (or about to, see `Executor::pause`) and the
-    /// head follows the tail of the flow to the pause point.
+    /// Valves shut for a pause; the head follows the flow's tail to the pause point. (A
+    /// request still waiting for its valve decision, see `Executor::pause`, reads as
+    /// Printing: the tick does not pay for telling them apart.)
     Pausing,
 }
 
@@ -582,8 +583,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
     fn model_state(&self) -> RunState {
         match self.phase {
             Phase::Idle => RunState::Idle,
-            // A requested pause waiting for its valve decision (see `pause`).
-            Phase::Print { stopping: false } if self.pause.requested => RunState::Pausing,
             Phase::Print { .. } => RunState::Printing,
             Phase::Settle { .. } => RunState::Settling,
             Phase::Travel { .. } => RunState::Travelling,
@@ -993,7 +992,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// it; and without converting the volume again).
     #[inline(always)]
     fn speed(&self) -> R {
-        if matches!(self.phase, Phase::Print { .. } | Phase::Pausing) {
+        if matches!(self.phase, Phase::Print { .. }) {
             self.last_q * self.inv_s
         } else {
             R::ZERO
@@ -1218,7 +1217,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// Moves the head to plan volume `self.head` along the current bead. Returns true
-    /// when the bead ended and the next phase should run this cycle.
+    /// when the bead ended and the next phase should run this cycle. Inlined into the
+    /// tick's print path (a pause's tail calls it too, out of line).
+    #[inline(always)]
     fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
         let inv_s = self.inv_s;
         let q_stop = self.machine.q_stop;

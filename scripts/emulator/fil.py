@@ -1004,7 +1004,7 @@ def scenario_pause(image, args, log_dir, machine, boards, rows):
     b.run(60, until=lambda: h.done())
     sent = h.text()
     h.kill()
-    virtual_wait(b, 0.5, 60)  # the current bead ends, then the board holds
+    virtual_wait(b, 0.5, 60)  # the head stops mid-bead at the pause point, then the board holds
     t_hold = b.now()[0]
     virtual_wait(b, 0.25, 60)
     held_opens, held_steps = opened_after(b, t_hold)

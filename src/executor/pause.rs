@@ -144,6 +144,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// boundary); the flow is then still too weak to have moved the head measurably.
     /// Pneumatic lines only: a syringe's predictions are its lag's closed forms, right
     /// from rest, and holding them back made switches after a resume 0.053 mm late.
+    #[inline(never)]
     pub(super) fn restarted(&mut self) -> bool {
         if self.pause.restarting && self.last_q > self.machine.q_stop {
             // Forget what was predicted so far: the next answers start from a flowing state.
@@ -162,6 +163,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// A requested pause while printing: shuts the valves now if the tail clears the
     /// next boundary and the bead's end, else waits (and works on the tail prediction).
+    #[inline(never)]
     pub(super) fn pause_check(&mut self) {
         let s = self.machine.bead_area;
         let tail = self.stop.answer(&self.model, Goal::Stop);
@@ -200,6 +202,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// Head along the bead by the tail's volume. Returns true when the tail reached the bead's planned end: the
     /// bead then ends as planned and the pause follows between beads.
+    #[inline(never)]
     pub(super) fn follow_pause(&mut self, q: R) -> Result<bool, super::Fault> {
         // Not as a stopping bead: its last segment is not cut short where the flow ends.
         if self.follow_path(false, q)? {

@@ -196,7 +196,7 @@ pub fn report_text(
         "off the path      {:.4} mm^3 landed between beads\n",
         m.off_path_volume
     ));
-    pause_lines(&mut s, r);
+    pause_lines(&mut s, r, config);
     s.push_str(&format!(
         "metered by        {}\n",
         if plant {
@@ -311,7 +311,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 }
 
 /// The report's lines for each pause: request, pause point, latencies, seam, flow.
-fn pause_lines(s: &mut String, r: &RunResult) {
+fn pause_lines(s: &mut String, r: &RunResult, config: &Config) {
+    // The machine's top flow (fastest bead speed times the section), for the flow at rest.
+    let top = config
+        .validate::<f64, { slicer::INLETS }>()
+        .map(|m| m.v_flow_max * m.bead_area)
+        .unwrap_or(0.0);
     let f = |t: Option<f64>| t.map_or("never".to_string(), |t| format!("{:.1} ms", t * 1e3));
     for (k, p) in r.pauses.iter().enumerate() {
         s.push_str(&format!(
@@ -343,13 +348,18 @@ fn pause_lines(s: &mut String, r: &RunResult) {
         } else {
             s.push_str("  seam            not measured (pause between beads, or job over)\n");
         }
-        s.push_str(&format!(
-            "  flow at rest    {:.4} % of the flow at the request at most\n",
-            if p.q_print > 0.0 {
-                100.0 * p.q_rested_max / p.q_print
+        let pct = |q: f64| {
+            if q > 0.0 {
+                100.0 * p.q_rested_max / q
             } else {
                 0.0
             }
+        };
+        s.push_str(&format!(
+            "  flow at rest    {:.4} mm^3/s at most: {:.3} % of the machine's top flow, {:.3} % of the flow at the request\n",
+            p.q_rested_max,
+            pct(top),
+            pct(p.q_print)
         ));
     }
 }
