@@ -56,7 +56,10 @@ fn random_plan(rng: &mut Rng, t_end: f64, n: usize) -> PausePlan {
         })
         .collect();
     requests.sort_by(|a, b| a.0.total_cmp(&b.0));
-    PausePlan { requests }
+    PausePlan {
+        requests,
+        resume_at: Vec::new(),
+    }
 }
 
 fn run_paused(cfg: &Config, job: &Job, plan: &PausePlan) -> RunResult {
@@ -324,7 +327,10 @@ fn edge_cases_switch_corner_prime_last_segment_twice() {
         }
         for (what, requests) in cases {
             let n = requests.len();
-            let plan = PausePlan { requests };
+            let plan = PausePlan {
+                requests,
+                resume_at: Vec::new(),
+            };
             let run = run_paused(&cfg, &j, &plan);
             assert_paused(&format!("{what}/{cfg_name}"), &cfg, &run, n);
         }
@@ -339,6 +345,7 @@ fn one_second_and_ten_minute_pauses() {
     let j = small();
     let plan = PausePlan {
         requests: vec![(0.6, 1.0), (3.0, 600.0)],
+        resume_at: Vec::new(),
     };
     let t0 = std::time::Instant::now();
     let r = run_paused(&cfg, &j, &plan);

@@ -13,6 +13,10 @@ pub struct PausePlan {
     /// (request time, wait after rest), s, in time order. A request falling while an
     /// earlier pause is still in effect is made right after that one's resume.
     pub requests: Vec<(f64, f64)>,
+    /// Absolute resume times (s), by request: where given, the pause is resumed at the
+    /// first cycle at or after it once the head rests, instead of a wait after the rest
+    /// (to replay a board's pause, as the firmware-in-the-loop check does).
+    pub resume_at: Vec<f64>,
 }
 
 impl PausePlan {
@@ -20,7 +24,10 @@ impl PausePlan {
     pub fn uniform(at_s: &[f64], wait_s: f64) -> Self {
         let mut requests: Vec<(f64, f64)> = at_s.iter().map(|&t| (t, wait_s)).collect();
         requests.sort_by(|a, b| a.0.total_cmp(&b.0));
-        PausePlan { requests }
+        PausePlan {
+            requests,
+            resume_at: Vec::new(),
+        }
     }
 }
 
@@ -86,7 +93,7 @@ const SECTION_MM: f64 = dollop::config::SECTION_WINDOW_MM;
 /// The runner's pause bookkeeping.
 #[derive(Debug)]
 pub(crate) struct Pauser {
-    plan: VecDeque<(f64, f64)>,
+    plan: VecDeque<(f64, f64, Option<f64>)>,
     bead_area: f64,
     /// Head speed below which it counts as at rest, mm/s.
     v_rest: f64,
@@ -102,6 +109,7 @@ pub(crate) struct Pauser {
 struct Active {
     rec: PauseRecord,
     wait: f64,
+    resume_at: Option<f64>,
     /// Output path length at rest.
     s_rest: Option<f64>,
     /// Stage: waiting for rest, waiting to resume, resumed (measuring the seam).
@@ -130,7 +138,12 @@ pub(crate) struct Seen {
 impl Pauser {
     pub fn new(plan: &PausePlan, bead_area: f64, v_rest: f64) -> Self {
         Pauser {
-            plan: plan.requests.iter().copied().collect(),
+            plan: plan
+                .requests
+                .iter()
+                .enumerate()
+                .map(|(k, &(t, w))| (t, w, plan.resume_at.get(k).copied()))
+                .collect(),
             bead_area,
             v_rest,
             s: 0.0,
@@ -183,7 +196,11 @@ impl Pauser {
                         a.rec.q_rested_max = c.q_plant;
                     }
                     a.rec.q_rested_max = a.rec.q_rested_max.max(c.q_plant);
-                    if c.t >= a.rec.t_rest.unwrap_or(c.t) + a.wait {
+                    let due = match a.resume_at {
+                        Some(at) => c.t >= at,
+                        None => c.t >= a.rec.t_rest.unwrap_or(c.t) + a.wait,
+                    };
+                    if due {
                         a.resumed = true;
                         a.rec.t_resume = Some(c.t);
                         action = Action::Resume;
@@ -205,7 +222,7 @@ impl Pauser {
             }
         }
         if self.active.is_none() && self.plan.front().is_some_and(|p| c.t >= p.0) {
-            let (_, wait) = self.plan.pop_front().expect("front");
+            let (_, wait, resume_at) = self.plan.pop_front().expect("front");
             if !matches!(
                 c.state,
                 RunState::Done | RunState::Aborted | RunState::Faulted | RunState::Idle
@@ -218,6 +235,7 @@ impl Pauser {
                         ..Default::default()
                     },
                     wait,
+                    resume_at,
                     s_rest: None,
                     resumed: false,
                 });

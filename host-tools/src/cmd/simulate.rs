@@ -48,6 +48,16 @@ pub struct Args {
     /// Resume each pause this long after the head came to rest, s of virtual time.
     #[arg(long, value_name = "S", default_value_t = 1.0, requires = "pause_at")]
     pub pause_for: f64,
+    /// Resume the pauses at these virtual times instead (s from the job's start, one per
+    /// `--pause-at`; a pause still running out then resumes once its head rests): replays
+    /// a board's pause, as the firmware-in-the-loop check does.
+    #[arg(
+        long,
+        value_name = "T1,T2,...",
+        value_delimiter = ',',
+        requires = "pause_at"
+    )]
+    pub resume_at: Vec<f64>,
 }
 
 /// What `simulate_job` should produce besides the result.
@@ -241,7 +251,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.pause_for
         );
     }
-    let plan = PausePlan::uniform(&a.pause_at, a.pause_for);
+    if let Some(bad) = a.resume_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+        anyhow::bail!("--resume-at {bad}: each time must be a number of seconds, 0 or more");
+    }
+    if !a.resume_at.is_empty() && a.resume_at.len() != a.pause_at.len() {
+        anyhow::bail!(
+            "--resume-at gives {} times for {} --pause-at times; give one for each",
+            a.resume_at.len(),
+            a.pause_at.len()
+        );
+    }
+    let mut plan = PausePlan::uniform(&a.pause_at, a.pause_for);
+    plan.resume_at = a.resume_at.clone();
     let job_name = a.job.display().to_string();
     let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
