@@ -19,6 +19,9 @@ use crate::vol::Vol;
 use heapless::Deque;
 use serde::{Deserialize, Serialize};
 
+mod pause;
+pub use pause::{PauseInfo, ResumeError};
+
 /// Planned items (finalised print segments, travels, dwells, end) the executor holds
 /// ahead of the head. The valve cursor needs the path up to (channel + filament volume +
 /// switch lead) / bead section ahead, about 4 mm on the seed printhead: 20 segments of
@@ -126,7 +129,7 @@ pub enum RunState {
     Travelling,
     /// Dwell.
     Dwelling,
-    /// Paused between beads.
+    /// Paused: valves shut, head at rest (mid-bead at the pause point, or between beads).
     Paused,
     /// Job finished.
     Done,
@@ -134,6 +137,10 @@ pub enum RunState {
     Aborted,
     /// Stopped by a fault.
     Faulted,
+    /// Valves shut for a pause; the head follows the flow's tail to the pause point. (A
+    /// request still waiting for its valve decision, see `Executor::pause`, reads as
+    /// Printing: the tick does not pay for telling them apart.)
+    Pausing,
 }
 
 /// Why `push` did not take a command.
@@ -246,7 +253,12 @@ enum Phase<R> {
     Dwell {
         left: u64,
     },
-    Paused,
+    /// Valves shut for a pause; the head follows the tail along the bead.
+    Pausing,
+    /// Paused; `on_bead`: mid-bead, the head following what little still flows.
+    Paused {
+        on_bead: bool,
+    },
     Done,
     Aborted,
     Faulted(Fault),
@@ -372,7 +384,7 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     cycle: u64,
     drivers_on: bool,
     valves_out: u32,
-    pause_requested: bool,
+    pause: pause::PauseState,
     pending_fault: Option<Fault>,
     last_dv: Vol,
     last_q: R,
@@ -423,7 +435,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             cycle: 0,
             drivers_on: false,
             valves_out: 0,
-            pause_requested: false,
+            pause: pause::PauseState::NONE,
             pending_fault: None,
             last_dv: Vol::ZERO,
             last_q: R::ZERO,
@@ -535,7 +547,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.stop.reset();
         self.lost = Vol::ZERO;
         self.cycle = 0;
-        self.pause_requested = false;
+        self.pause = pause::PauseState::NONE;
         self.pending_fault = None;
         self.last_index = 0;
     }
@@ -556,7 +568,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
             // Once resumed, the window still shows the paused frames for half a window;
             // a host asking then must not be told the print is (still) paused.
             _ if self.ramped => match self.ramp.state() {
-                RunState::Paused if !matches!(self.phase, Phase::Paused) => self.model_state(),
+                RunState::Paused | RunState::Pausing
+                    if !matches!(self.phase, Phase::Paused { .. } | Phase::Pausing) =>
+                {
+                    self.model_state()
+                }
                 s => s,
             },
             _ => self.model_state(),
@@ -571,7 +587,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             Phase::Settle { .. } => RunState::Settling,
             Phase::Travel { .. } => RunState::Travelling,
             Phase::Dwell { .. } => RunState::Dwelling,
-            Phase::Paused => RunState::Paused,
+            Phase::Pausing => RunState::Pausing,
+            Phase::Paused { .. } => RunState::Paused,
             Phase::Done => RunState::Done,
             Phase::Aborted => RunState::Aborted,
             Phase::Faulted(_) => RunState::Faulted,
@@ -693,7 +710,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 | Phase::Settle { .. }
                 | Phase::Travel { .. }
                 | Phase::Dwell { .. }
-                | Phase::Paused
+                | Phase::Pausing
+                | Phase::Paused { .. }
         ) || (self.begun
             && !self.plan.is_empty()
             && !matches!(self.phase, Phase::Done | Phase::Aborted | Phase::Faulted(_)))
@@ -713,17 +731,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
     }
 
-    /// Finish the current bead (valves closed at its end), then hold until `resume`.
-    pub fn pause(&mut self) {
-        self.pause_requested = true;
-    }
-    /// Continue after a pause.
-    pub fn resume(&mut self) {
-        self.pause_requested = false;
-        if matches!(self.phase, Phase::Paused) {
-            self.phase = Phase::Idle;
-        }
-    }
     /// Stops now: valves closed, motion stopped, drivers off.
     pub fn abort(&mut self, out: &mut impl Outputs) {
         self.safe_outputs(out);
@@ -1111,11 +1118,24 @@ impl<R: Real, const N: usize> Executor<R, N> {
                         break;
                     }
                 }
-                Phase::Paused | Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
+                Phase::Pausing => {
+                    self.head += dv_left;
+                    dv_left = Vol::ZERO;
+                    if self.follow_pause(flow.q)? {
+                        continue;
+                    }
+                    break;
+                }
+                // Paused, the head holds still: what little still trickles below the
+                // stop threshold (micrometres of bead) stays at the pause point.
+                Phase::Paused { .. } | Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
                     self.lost += dv_left;
                     break;
                 }
             }
+        }
+        if self.pause.requested && matches!(self.phase, Phase::Print { stopping: false }) {
+            self.pause_check();
         }
         if matches!(self.phase, Phase::Print { .. }) {
             self.decide_valves()?;
@@ -1126,8 +1146,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Takes the next plan item when idle. Returns true if a new phase began that should
     /// see this cycle too.
     fn start_next(&mut self) -> Result<bool, Fault> {
-        if self.pause_requested {
-            self.phase = Phase::Paused;
+        if self.pause.requested {
+            self.pause_between_beads();
             return Ok(false);
         }
         let Some(item) = self.plan.front().copied() else {
@@ -1197,7 +1217,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// Moves the head to plan volume `self.head` along the current bead. Returns true
-    /// when the bead ended and the next phase should run this cycle.
+    /// when the bead ended and the next phase should run this cycle. Inlined into the
+    /// tick's print path (a pause's tail calls it too, out of line).
+    #[inline(always)]
     fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
         let inv_s = self.inv_s;
         let q_stop = self.machine.q_stop;
@@ -1296,11 +1318,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
             } else if entry + self.window >= u_b {
                 // Behind the cursor already (job start, or a lead the prediction missed):
                 // switch at once; otherwise when the predicted lead says so.
+                // Not on a prediction made from vented lines as a pause resumes (see
+                // `pause::restarted`).
                 let due = entry >= u_b
                     || self
                         .switch
                         .answer(&self.model, Goal::Switch(m))
-                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
+                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b)
+                        && self.restarted();
                 if !due && self.work(0) {
                     self.switch.work(&self.model);
                 }
@@ -1321,7 +1346,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let due = self
                     .stop
                     .answer(&self.model, Goal::Stop)
-                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
+                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end)
+                    && self.restarted();
                 if due {
                     self.model.command(0);
                     self.want = None;

@@ -228,7 +228,7 @@ fn a_resumed_print_is_never_reported_paused_while_the_window_drains() {
         d.tick();
         assert_eq!(d.e.state(), RunState::Paused);
     }
-    d.e.resume();
+    d.e.resume().unwrap();
     let mut n = 0;
     loop {
         d.tick();

@@ -302,6 +302,12 @@ fn messages() -> Vec<(&'static str, String)> {
         ),
         ("refused_estop", Refusal::EStopActive),
         ("refused_store", Refusal::Store(StoreError::Erase)),
+        (
+            "refused_not_paused",
+            Refusal::NotPaused {
+                run: RunState::Printing,
+            },
+        ),
     ];
     for (name, r) in refusals {
         v.push((name, device(&Reply::Refused(r))));
@@ -356,6 +362,7 @@ const GOLDEN: &[(&str, &str)] = &[
     ("refused_halted", "0eb424070803031301020acd291b00"),
     ("refused_estop", "0cb4240708030314f53e4e9100"),
     ("refused_store", "0db424070803031501f7a6587100"),
+    ("refused_not_paused", "0db424070803031801bad8f6c400"),
 ];
 
 #[test]

@@ -27,7 +27,7 @@ enum Command {
     Send(cmd::link::SendArgs),
     /// Show the board's state.
     Status(cmd::link::PortArgs),
-    /// Pause the print after the current bead (valves closed).
+    /// Pause the print mid-bead (valves shut, head stopped), until resumed.
     Pause(cmd::link::PortArgs),
     /// Resume a paused print.
     Resume(cmd::link::PortArgs),

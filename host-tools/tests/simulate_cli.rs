@@ -409,3 +409,47 @@ fn report_warns_when_the_section_or_an_axis_leaves_its_bound() {
         }
     }
 }
+
+/// `--pause-at` / `--pause-for`: one report block per pause (a 10-minute pause in
+/// virtual time), and bad times refused in one line.
+#[test]
+fn pauses_are_reported_and_bad_times_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (job, cfg) = write_job(dir.path());
+    let out = simulate(&job, &cfg)
+        .args(["--pause-at", "1.5,2.0", "--pause-for", "600", "--report"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for line in [
+        "pause 1 ",
+        "pause 2 ",
+        "pause point",
+        "latency",
+        "seam",
+        "flow at rest",
+    ] {
+        assert!(text.contains(line), "no {line:?} in\n{text}");
+    }
+    assert!(text.contains("mid-bead"), "{text}");
+    for (args, needle) in [
+        (["--pause-at=-1", "--report"], "--pause-at"),
+        (["--pause-at=x", "--report"], "pause-at"),
+    ] {
+        let out = simulate(&job, &cfg).args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "accepted {args:?}");
+        assert!(err.contains(needle), "{err}");
+    }
+    let out = simulate(&job, &cfg)
+        .args(["--pause-at", "1", "--pause-for=-5"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--pause-for"));
+}

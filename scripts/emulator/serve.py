@@ -290,6 +290,7 @@ class Driver(threading.Thread):
             r["pause"] = "the print ended before %.0f %%" % (100 * a.pause_at)
             return
         r["pause_asked"] = fol.latest["progress"]
+        r["valves_at_pause"] = len(b.log.valves)
         r["pause_msg"] = d.action(bid, "pause")
         r["paused_view"] = fol.wait(lambda v: v["activity"] == "paused", 120, "paused")
         # Held: read from the pin log's lengths (appended by the main thread only).
@@ -334,11 +335,13 @@ def scenario_serve(image, args, log_dir, machine, boards, rows):
     # The simulator on the job actually sent (--job's rows when they are the same bytes).
     if not r["same_job"]:
         rows = F.simulate(args, r["dlp_path"], args.config, log_dir, "serve-job")
-    n_before = None
-    if r.get("pause") == "ok" and r["valves_before_resume"] < len(b.log.valves):
-        cut = b.log.valves[r["valves_before_resume"]][0]
-        n_before = len(F.board_changes(b, t_to=cut))
-    ok, lines, summ = F.compare(b, rows, pieces=[n_before] if n_before is not None else None)
+    # The pause is mid-bead: the simulator replays it at the board's pin times (see
+    # fil.replay_pause) and the whole print is compared with one time origin.
+    if r.get("pause") == "ok" and r["valves_at_pause"] < len(b.log.valves):
+        t_after = b.log.valves[r["valves_at_pause"]][0]
+        rows, _ = F.replay_pause(args, log_dir, b, rows, t_after,
+                                 job=None if r["same_job"] else r["dlp_path"])
+    ok, lines, summ = F.compare(b, rows)
     res = dict(board=b, ok=ok, lines=lines, summary=summ)
     return checks(r, drv.fol, b, dash, res, wall, virtual), summ
 

@@ -6,9 +6,11 @@
 pub mod bench;
 pub mod designs;
 pub mod metrics;
+pub mod pause;
 pub mod plant;
 pub mod run;
 
 pub use designs::Job;
 pub use metrics::Metrics;
-pub use run::{run, run_with_plant, Cycle, RunOptions, RunResult, SimError};
+pub use pause::{PausePlan, PauseRecord};
+pub use run::{run, run_paused, run_with_plant, Cycle, RunOptions, RunResult, SimError};

@@ -4,6 +4,7 @@
 
 use crate::designs::Job;
 use crate::metrics::{CycleIn, Meter, Metrics};
+use crate::pause::{Action, PausePlan, PauseRecord, Pauser, Seen};
 use crate::plant::Plant;
 use dollop::config::Config;
 use dollop::executor::PushError;
@@ -107,6 +108,8 @@ pub struct RunResult {
     pub bead_area: f64,
     /// Print segments in the job.
     pub segments: usize,
+    /// The pauses of a [`run_paused`] run, in order.
+    pub pauses: Vec<PauseRecord>,
 }
 
 /// Runs `job` on `config` with the executor computing in `R`, calling `observe` every
@@ -128,6 +131,26 @@ pub fn run_with_plant<R: Real>(
     plant_config: &Config,
     job: &Job,
     opts: &RunOptions,
+    observe: impl FnMut(&Cycle<'_, R>),
+) -> Result<RunResult, SimError> {
+    run_paused(
+        config,
+        plant_config,
+        job,
+        opts,
+        &PausePlan::default(),
+        observe,
+    )
+}
+
+/// [`run_with_plant`] with pauses requested and resumed as `pauses` says; each one's
+/// figures are in `RunResult::pauses`.
+pub fn run_paused<R: Real>(
+    config: &Config,
+    plant_config: &Config,
+    job: &Job,
+    opts: &RunOptions,
+    pauses: &PausePlan,
     mut observe: impl FnMut(&Cycle<'_, R>),
 ) -> Result<RunResult, SimError> {
     let mut machine = config
@@ -144,6 +167,7 @@ pub fn run_with_plant<R: Real>(
         machine.motion.steps_per_mm[2].to_f64(),
     ];
     let bead_area = machine.bead_area.to_f64();
+    let mut pauser = Pauser::new(pauses, bead_area, machine.q_stop.to_f64() / bead_area);
     let mut exec: Executor<R> = Executor::new(machine);
     exec.begin(job.start_um, job.initial_material)
         .map_err(SimError::Begin)?;
@@ -203,7 +227,7 @@ pub fn run_with_plant<R: Real>(
                         p.command(i, out.valves & (1 << i) != 0);
                     }
                 }
-                return Ok(axis_accel.into(finish(
+                let mut r = axis_accel.into(finish(
                     exec.state(),
                     fault,
                     t,
@@ -218,7 +242,9 @@ pub fn run_with_plant<R: Real>(
                     max_slugs,
                     bead_area,
                     job,
-                )));
+                ));
+                r.pauses = pauser.finish();
+                return Ok(r);
             }
         };
         // What landed during the cycle that just ended.
@@ -237,8 +263,13 @@ pub fn run_with_plant<R: Real>(
                 (report.dv.mm3::<f64>(), m)
             }
         };
-        let printing = report.state == RunState::Printing;
-        let on_bead = matches!(report.state, RunState::Printing | RunState::Settling);
+        // A pause's tail and what trickles while paused land on the bead, the head
+        // standing or creeping: counted as printing, so a blob at the seam shows.
+        let printing = matches!(
+            report.state,
+            RunState::Printing | RunState::Pausing | RunState::Paused
+        );
+        let on_bead = printing || report.state == RunState::Settling;
         let pos = [report.position[0].to_f64(), report.position[1].to_f64()];
         meter.cycle(CycleIn {
             bead_command: on_bead.then_some(report.command_index),
@@ -302,6 +333,28 @@ pub fn run_with_plant<R: Real>(
         } else {
             hist = [[f64::NAN; 3]; 3];
         }
+        if !pauses.requests.is_empty() {
+            let seen = Seen {
+                t,
+                state: report.state,
+                pos,
+                plan_mm: report.plan_volume.mm3::<f64>() / bead_area,
+                valves: out.valves,
+                landed: landed_volume,
+                q_plant: plant.as_ref().map_or(report.q.to_f64(), |p| p.q()),
+            };
+            match pauser.cycle(&seen, dt) {
+                Action::Pause => exec.pause(),
+                Action::Resume => {
+                    // Refused only if the job ended meanwhile; the record shows it.
+                    let _ = exec.resume();
+                }
+                Action::None => {}
+            }
+            if report.state == RunState::Paused && pauser.holding() {
+                pauser.executor_says(exec.pause_info());
+            }
+        }
         observe(&Cycle {
             t_s: t,
             report: &report,
@@ -312,7 +365,7 @@ pub fn run_with_plant<R: Real>(
         });
         cycle += 1;
         if matches!(report.state, RunState::Done | RunState::Aborted) {
-            return Ok(axis_accel.into(finish(
+            let mut r = axis_accel.into(finish(
                 report.state,
                 None,
                 t,
@@ -327,7 +380,9 @@ pub fn run_with_plant<R: Real>(
                 max_slugs,
                 bead_area,
                 job,
-            )));
+            ));
+            r.pauses = pauser.finish();
+            return Ok(r);
         }
         if cycle > max_cycles {
             return Err(SimError::Timeout(opts.max_time_s));
@@ -403,6 +458,7 @@ fn finish(
         axis_accel_at: [0.0; 3],
         bead_area,
         segments: job.print_segments(),
+        pauses: Vec::new(),
     }
 }
 

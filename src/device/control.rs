@@ -356,7 +356,9 @@ impl Control {
             }
             Order::Resume => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
-                    e.resume();
+                    // The link refuses a resume with nothing paused; one racing the
+                    // pause's end changes nothing.
+                    let _ = e.resume();
                 }
             }
             Order::LinkLost(policy) => match self.active {

@@ -8,6 +8,7 @@ use super::store::JobStore;
 use super::{JobRecord, Order, ToControl};
 use crate::command::Command;
 use crate::config::Config;
+use crate::executor::RunState;
 use crate::job::{self, BodyDecoder, JobHeader};
 use crate::wire::frame::Event;
 use crate::wire::{
@@ -649,6 +650,11 @@ impl<S: JobStore> Core<S> {
             }
             Request::Resume => {
                 halted()?;
+                if snap.mode != Mode::Job
+                    || !matches!(snap.run, RunState::Paused | RunState::Pausing)
+                {
+                    return Err(Refusal::NotPaused { run: snap.run });
+                }
                 order(port, Order::Resume)?;
                 Ok(Reply::Ack)
             }

@@ -85,9 +85,11 @@ pub enum Request<'a> {
     EndJob,
     /// Starts the uploaded, checked job (homed machine, matching config).
     Start,
-    /// Finishes the current bead (valves closed), then holds.
+    /// Pauses mid-bead: valves shut where the flow's tail lands on the bead (or at the
+    /// current bead's end when that comes first), the head stops at the pause point and
+    /// holds. `Status` shows Pausing, then Paused.
     Pause,
-    /// Continues after a pause.
+    /// Continues after a pause, from the pause point (refused with nothing paused).
     Resume,
     /// Stops now: valves closed, motion stopped, drivers off.
     Abort,
@@ -306,7 +308,8 @@ impl fmt::Display for StoreError {
 /// What to do when the host link is lost while a job runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum LinkLossPolicy {
-    /// Finish the current bead (valves closed), then hold until resumed.
+    /// Pause as `Request::Pause` does (valves shut, head stopped mid-bead), then hold
+    /// until resumed.
     Pause,
     /// Safe state at once (fault `LinkLost`).
     Stop,
@@ -597,6 +600,11 @@ pub enum Refusal {
     /// An upload is preparing or writing the job store, which stalls the chip on flash
     /// boards: nothing may move or open until it is done.
     Uploading,
+    /// Resume with nothing paused (no pause requested or in effect).
+    NotPaused {
+        /// What the job is doing.
+        run: RunState,
+    },
 }
 
 impl fmt::Display for Refusal {
@@ -665,6 +673,10 @@ impl fmt::Display for Refusal {
             Refusal::Uploading => write!(
                 f,
                 "a job upload is writing the board's job store; wait for it to finish (dollop status) or abort it"
+            ),
+            Refusal::NotPaused { run } => write!(
+                f,
+                "nothing to resume: the print is not paused (run state {run:?}); `dollop pause` pauses it"
             ),
         }
     }

@@ -147,6 +147,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             heatmap: Some(&mut heat),
             progress: true,
             max_seconds: f64::INFINITY,
+            pauses: None,
         },
     )?;
     let wall = t.elapsed();

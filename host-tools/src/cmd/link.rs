@@ -27,7 +27,8 @@ pub struct PortArgs {
 /// What the board does when the link is lost while it prints.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum LossArg {
-    /// Finish the current bead with the valves closed, then hold until resumed.
+    /// Pause mid-bead (valves shut, head stopped where the paste's tail ends), then hold
+    /// until resumed.
     Pause,
     /// Stop at once: valves closed, drivers off.
     Stop,
@@ -272,7 +273,7 @@ fn follow<T: Transport>(c: &mut Client<T>, commands: u32) -> anyhow::Result<()> 
             c.command(&Request::Pause)?;
             pb.abandon();
             eprintln!(
-                "pausing after the current bead (valves closed).\n  resume: dollop resume\n  stop:   dollop abort"
+                "pausing (valves shut, the head stops where the paste's tail ends).\n  resume: dollop resume\n  stop:   dollop abort"
             );
             return Ok(());
         }
@@ -386,7 +387,29 @@ pub fn status(a: PortArgs) -> anyhow::Result<()> {
 pub fn pause(a: PortArgs) -> anyhow::Result<()> {
     let mut c = connect(&a)?;
     c.command(&Request::Pause)?;
-    eprintln!("pausing after the current bead (valves closed); `dollop resume` continues");
+    eprintln!("pausing: valves shut, the head stops where the paste's tail ends");
+    // The board says Pausing until the head rests at the pause point.
+    let asked = Instant::now();
+    while asked.elapsed() < Duration::from_secs(30) {
+        let s = c.status()?;
+        let k = &s.control;
+        if k.run == RunState::Paused {
+            eprintln!(
+                "paused at ({:.3}, {:.3}, {:.3}) mm, {:.0} ms after the request; `dollop resume` continues",
+                k.position_um[0] as f64 / 1000.0,
+                k.position_um[1] as f64 / 1000.0,
+                k.position_um[2] as f64 / 1000.0,
+                asked.elapsed().as_secs_f64() * 1e3
+            );
+            return Ok(());
+        }
+        if k.mode != Mode::Job {
+            eprintln!("no print to pause (the board is {:?})", k.mode);
+            return Ok(());
+        }
+        c.sleep(Duration::from_millis(20));
+    }
+    eprintln!("still pausing after 30 s (`dollop status` shows the state)");
     Ok(())
 }
 

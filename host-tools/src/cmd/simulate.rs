@@ -8,7 +8,7 @@ use anyhow::Context;
 use dollop::config::Config;
 use dollop::RunState;
 use dollop_sim::metrics::Boundary;
-use dollop_sim::{Job, RunOptions, RunResult};
+use dollop_sim::{Job, PausePlan, RunOptions, RunResult};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -40,6 +40,24 @@ pub struct Args {
     /// long jobs show a progress bar on a terminal].
     #[arg(long, value_name = "S")]
     pub max_seconds: Option<f64>,
+    /// Request a pause at each of these virtual times (s from the job's start); the
+    /// report then gives, per pause, the pause point, the latencies and the seam. A time
+    /// that falls while an earlier pause holds is requested right after its resume.
+    #[arg(long, value_name = "T1,T2,...", value_delimiter = ',')]
+    pub pause_at: Vec<f64>,
+    /// Resume each pause this long after the head came to rest, s of virtual time.
+    #[arg(long, value_name = "S", default_value_t = 1.0, requires = "pause_at")]
+    pub pause_for: f64,
+    /// Resume the pauses at these virtual times instead (s from the job's start, one per
+    /// `--pause-at`; a pause still running out then resumes once its head rests): replays
+    /// a board's pause, as the firmware-in-the-loop check does.
+    #[arg(
+        long,
+        value_name = "T1,T2,...",
+        value_delimiter = ',',
+        requires = "pause_at"
+    )]
+    pub resume_at: Vec<f64>,
 }
 
 /// What `simulate_job` should produce besides the result.
@@ -52,6 +70,8 @@ pub struct Outputs<'a> {
     pub progress: bool,
     /// Simulated seconds after which the run gives up (infinite: none).
     pub max_seconds: f64,
+    /// Pauses to request and resume (none: an empty plan).
+    pub pauses: Option<&'a PausePlan>,
 }
 
 /// Runs `job` on `config`, streaming the trace and painting the heatmap.
@@ -76,8 +96,10 @@ pub fn simulate_job(
         mut trace,
         mut heatmap,
         max_seconds,
+        pauses,
         ..
     } = out;
+    let no_pauses = PausePlan::default();
     let mut io_error: Option<std::io::Error> = None;
     if let Some(w) = trace.as_deref_mut() {
         if let Err(e) = writeln!(w, "t_s,x_mm,y_mm,z_mm,valve_mask") {
@@ -91,7 +113,8 @@ pub fn simulate_job(
         max_time_s: max_seconds,
         ..Default::default()
     };
-    let result = dollop_sim::run::<f32>(config, job, &opts, |c| {
+    let plan = pauses.unwrap_or(&no_pauses);
+    let result = dollop_sim::run_paused::<f32>(config, config, job, &opts, plan, |c| {
         let r = c.report;
         if let Some(w) = trace.as_deref_mut() {
             if io_error.is_none() && (cycle.is_multiple_of(every) || r.valves != last_mask) {
@@ -106,7 +129,12 @@ pub fn simulate_job(
         }
         last_mask = r.valves;
         if let Some(h) = heatmap.as_deref_mut() {
-            if c.landed_volume > 0.0 && matches!(r.state, RunState::Printing | RunState::Settling) {
+            if c.landed_volume > 0.0
+                && matches!(
+                    r.state,
+                    RunState::Printing | RunState::Settling | RunState::Pausing | RunState::Paused
+                )
+            {
                 h.paint(r.position[0] as f64, r.position[1] as f64, c.landing);
             }
         }
@@ -193,6 +221,7 @@ pub fn report_text(
     for w in warnings(r, config) {
         s.push_str(&format!("WARNING: {w}\n"));
     }
+    pause_lines(&mut s, r, config);
     s.push_str(&format!(
         "metered by        {}\n",
         if plant {
@@ -282,6 +311,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(v) if v.is_finite() && v > 0.0 => v,
         Some(v) => anyhow::bail!("--max-seconds {v} must be a number of seconds above 0"),
     };
+    if let Some(bad) = a.pause_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+        anyhow::bail!("--pause-at {bad}: each time must be a number of seconds, 0 or more");
+    }
+    if !(a.pause_for.is_finite() && a.pause_for >= 0.0) {
+        anyhow::bail!(
+            "--pause-for {}: must be a number of seconds, 0 or more",
+            a.pause_for
+        );
+    }
+    if let Some(bad) = a.resume_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+        anyhow::bail!("--resume-at {bad}: each time must be a number of seconds, 0 or more");
+    }
+    if !a.resume_at.is_empty() && a.resume_at.len() != a.pause_at.len() {
+        anyhow::bail!(
+            "--resume-at gives {} times for {} --pause-at times; give one for each",
+            a.resume_at.len(),
+            a.pause_at.len()
+        );
+    }
+    let mut plan = PausePlan::uniform(&a.pause_at, a.pause_for);
+    plan.resume_at = a.resume_at.clone();
     let job_name = a.job.display().to_string();
     let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
@@ -303,6 +353,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     heatmap: heat.as_mut(),
                     progress: true,
                     max_seconds,
+                    pauses: Some(&plan),
                 }) {
                     Ok(r) => {
                         res = Some(r);
@@ -325,6 +376,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             heatmap: heat.as_mut(),
             progress: true,
             max_seconds,
+            pauses: Some(&plan),
         })?,
     };
     let wall = t.elapsed();
@@ -350,6 +402,60 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The report's lines for each pause: request, pause point, latencies, seam, flow.
+fn pause_lines(s: &mut String, r: &RunResult, config: &Config) {
+    // The machine's top flow (fastest bead speed times the section), for the flow at rest.
+    let top = config
+        .validate::<f64, { slicer::INLETS }>()
+        .map(|m| m.v_flow_max * m.bead_area)
+        .unwrap_or(0.0);
+    let f = |t: Option<f64>| t.map_or("never".to_string(), |t| format!("{:.1} ms", t * 1e3));
+    for (k, p) in r.pauses.iter().enumerate() {
+        s.push_str(&format!(
+            "pause {}           requested at {:.4} s, head at {:.3} mm along the print path\n",
+            k + 1,
+            p.t_request,
+            p.s_request_mm
+        ));
+        s.push_str(&format!(
+            "  pause point     {:.3} mm along the path ({:.3} mm on from the request{}), at ({:.3}, {:.3}) mm\n",
+            p.s_point_mm,
+            p.distance_mm(),
+            if p.at_bead_end { ", at a bead's end" } else { ", mid-bead" },
+            p.point_xy[0],
+            p.point_xy[1]
+        ));
+        s.push_str(&format!(
+            "  latency         valves shut (pins) {}, head at rest {}; resumed at {}\n",
+            f(p.shut_latency()),
+            f(p.rest_latency()),
+            p.t_resume
+                .map_or("never".to_string(), |t| format!("{t:.4} s"))
+        ));
+        if p.seam_measured {
+            s.push_str(&format!(
+                "  seam            longest uncovered gap {:.3} mm; section over 0.2 mm {:.3} .. {:.3} of S\n",
+                p.seam_gap_mm, p.seam_section.0, p.seam_section.1
+            ));
+        } else {
+            s.push_str("  seam            not measured (pause between beads, or job over)\n");
+        }
+        let pct = |q: f64| {
+            if q > 0.0 {
+                100.0 * p.q_rested_max / q
+            } else {
+                0.0
+            }
+        };
+        s.push_str(&format!(
+            "  flow at rest    {:.4} mm^3/s at most: {:.3} % of the machine's top flow, {:.3} % of the flow at the request\n",
+            p.q_rested_max,
+            pct(top),
+            pct(p.q_print)
+        ));
+    }
 }
 
 /// Material colours on the plate, by inlet: the same as the toolpath preview's.

@@ -196,7 +196,7 @@ pub enum Order {
     StartNext,
     /// Drop a queued job.
     Unqueue(u64),
-    /// Pause after the current bead.
+    /// Pause mid-bead (valves shut, head stopped at the pause point).
     Pause,
     /// Resume a paused print.
     Resume,
@@ -546,7 +546,9 @@ impl Worker {
             }
         }
         v.activity = match (k.mode, k.run) {
+            // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
             (Mode::Job, RunState::Paused) => "paused".into(),
+            (Mode::Job, RunState::Pausing) => "pausing".into(),
             (Mode::Job, _) => "printing".into(),
             (Mode::Homing, _) => "homing".into(),
             (Mode::Halted, _) => "halted".into(),

@@ -608,6 +608,16 @@ async function drawBoard(id) {
   g.beginPath();
   g.arc(X(b.position[0]), Y(b.position[1]), 5, 0, 2 * Math.PI);
   g.fill();
+  if (b.run === "Paused") {
+    // The pause point: where the bead stopped and will go on from.
+    g.strokeStyle = "#2471a3";
+    g.lineWidth = 2;
+    g.beginPath();
+    g.arc(X(b.position[0]), Y(b.position[1]), 9, 0, 2 * Math.PI);
+    g.stroke();
+    g.fillStyle = "#2471a3";
+    g.fillText("pause point", X(b.position[0]) + 12, Y(b.position[1]) - 8);
+  }
 }
 
 function renderBoards(data) {
@@ -619,6 +629,10 @@ function renderBoards(data) {
     if (!card) box.append((card = boardCard(b)));
     const q = (s) => card.querySelector(s);
     q(".state").textContent = b.connected ? b.activity : "not connected";
+    // Pause applies to a running print, Resume to a paused (or pausing) one.
+    const pausedish = b.run === "Paused" || b.run === "Pausing";
+    q('[data-action="pause"]').disabled = !(b.mode === "Job" && !pausedish);
+    q('[data-action="resume"]').disabled = !(b.mode === "Job" && pausedish);
     card.dataset.activity = b.activity;
     card.dataset.run = b.run;
     card.dataset.progress = String(b.progress);
