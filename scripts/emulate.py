@@ -556,6 +556,10 @@ class Chip:
             self.optkeys = self.optkeys + 1 if value == OPTKEYS[self.optkeys % 2] and self.optkeys < 2 else 0
             if self.optkeys == 2:
                 self.values[FLASH_OPTCR] = self.values.get(FLASH_OPTCR, 0) & ~1
+        if name == "FLASH" and off == 0x10:
+            # CR.STRT: the erase it starts is done at once here (SR never busy), and the
+            # bit clears with BSY, as on the chip, so a later CR write starts nothing.
+            new &= ~(1 << 16)
         if name == "FLASH" and off == 0x14:
             if old & 1 and self.optkeys < 2:
                 return old  # locked: the write is ignored

@@ -53,6 +53,7 @@ ENDSTOP_BITS = [0, 1, 2]  # PC0..PC2, active low
 ESTOP_BIT = 13  # PC13, high = stop
 STORE_BASE, STORE_LEN, SECTOR = 0x08040000, 0xC0000, 0x20000
 EXTI_PR = 0x40013C14
+ACR_DCEN, ACR_DCRST = 1 << 10, 1 << 12  # FLASH_ACR data cache enable and reset
 NVIC_ISPR = 0xE000E200
 IWDG_KR = 0x40003000
 IWDG_PR = 0x40003004  # PR and RLR (8 bytes)
@@ -286,6 +287,13 @@ class Board:
         self.flipped = None
         self.store_writes = 0
         self.erased = []
+        # Flash busy (issue 24): each erase start and program store with the outputs as
+        # they stood then, and each data-cache reset (FLASH_ACR DCRST), for
+        # check_outputs_safe_while_flash_busy.
+        self.erase_starts = []  # (t, outputs safe)
+        self.programs = 0
+        self.programs_unsafe = []  # (t, pin state)
+        self.dcrst = []  # t of each ACR write with DCRST set and DCEN clear
         self.exti_armed = False
         self.faults = []
         self.acc_cache = {}
@@ -532,6 +540,9 @@ class Board:
             if self.flip_at is not None and off <= self.flip_at < off + sz and self.flipped is None:
                 data[self.flip_at - off] ^= 0x01
                 self.flipped = (self.flip_at, self.now()[0])
+            self.programs += 1
+            if not self.outputs_safe():
+                self.programs_unsafe.append((self.now()[0], pin_state(self)))
             # Programming only clears bits, as on the chip.
             old = self.emu.r.read(addr, sz)
             self.emu.r.write(addr, bytes(o & d for o, d in zip(old, data)))
@@ -542,9 +553,13 @@ class Board:
         self.emu.on_write_orig(periph, regname, value, t)
         if periph == "IWDG":
             self.on_watchdog_write(regname, value, t)
+        if periph == "FLASH" and regname == "ACR" and value & ACR_DCRST and not value & ACR_DCEN:
+            self.dcrst.append(t)
         if periph == "FLASH" and regname == "CR":
-            cr = self.emu.chip.values.get(0x40023C10, 0)
+            # The value written: the model clears STRT at once (the erase is done).
+            cr = value
             if cr & (1 << 16) and cr & 2:
+                self.erase_starts.append((t, self.outputs_safe()))
                 snb = (cr >> 3) & 0xF
                 if snb >= 5:
                     base = 0x08020000 + (snb - 5) * SECTOR
@@ -553,6 +568,10 @@ class Board:
                         for off in range(0, SECTOR, 1024):
                             self.emu.r.write(base + off, blank)
                         self.erased.append(snb)
+
+    def outputs_safe(self):
+        """Every valve low and the drivers disabled (PB15 high), from the pin log."""
+        return self.log.valve_mask() == 0 and self.log.level["GPIOB"] >> 15 & 1 == 1
 
     def on_exti(self, w, regs):
         """EXTI_PR read by the e-stop handler: line 13 pending while the e-stop is asserted."""
@@ -997,6 +1016,7 @@ def check_printed(res, host_text):
             "; ".join("%s at %.3f s: %s" % (f[0], f[1] / 1e9, f[2]) for f in b.faults)
             or "none (halt reasons come over the link)")]
     out.append(check_watchdog_around_erases(b))
+    out.append(check_outputs_safe_while_flash_busy(b))
     s = res["summary"]
     out.append(("pins match the simulator", res["ok"],
                 "%d valve changes, worst offset %.3f ms, worst axis %+d steps at a change, final X/Y/Z %s steps%s" % (
@@ -1024,6 +1044,28 @@ def check_watchdog_around_erases(b):
             "%d reconfigurations (PR, RLR): %s; control loop pended after each unlock: %d feed(s) "
             "between an unlock and its reload write" % (
                 len(pairs), ", ".join("(%d, %d)" % p for p in pairs) or "none", b.wdg_feeds_in_window))
+
+
+def check_outputs_safe_while_flash_busy(b):
+    """While the flash erases or programs it stalls every fetch from it, the e-stop's
+    handler included (RM0090 3.5), so the firmware forces the outputs safe first: every
+    erase start (FLASH_CR SER+STRT) and every program store into the job store must find
+    the valves low and the drivers disabled, and each erase must be followed by a
+    data-cache reset (FLASH_ACR DCRST with DCEN clear, RM0090 3.5.2) before the next
+    erase or the end of the run."""
+    unsafe_erases = [t for t, safe in b.erase_starts if not safe]
+    starts = [t for t, _ in b.erase_starts]
+    uncleared = [t for i, t in enumerate(starts)
+                 if not any(t < d < (starts[i + 1] if i + 1 < len(starts) else float("inf")) for d in b.dcrst)]
+    ok = bool(starts) and b.programs > 0 and not unsafe_erases and not b.programs_unsafe and not uncleared
+    fig = "%d erase(s), %d program store(s): outputs safe at %s; data cache reset after %d of %d erase(s)" % (
+        len(starts), b.programs,
+        "every one" if not unsafe_erases and not b.programs_unsafe else
+        "NOT: erases at %s ms, programs %s" % (
+            ", ".join("%.3f" % (t / 1e6) for t in unsafe_erases),
+            "; ".join("%.3f ms (%s)" % (t / 1e6, st) for t, st in b.programs_unsafe[:3])),
+        len(starts) - len(uncleared), len(starts))
+    return ("outputs safe while the flash is busy", ok, fig)
 
 
 def last_line(text):
