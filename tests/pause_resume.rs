@@ -104,20 +104,7 @@ struct Tally {
 fn assert_paused(name: &str, cfg: &Config, r: &RunResult, planned: usize) -> Tally {
     summary(name, r);
     let m = machine(cfg);
-    assert_eq!(
-        r.state,
-        RunState::Done,
-        "{name}: {:?} {:?}",
-        r.state,
-        r.fault
-    );
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{name}: {:?}",
-        r.metrics.mismatches
-    );
-    let worst = r.metrics.worst_boundary();
-    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    assert_landed(name, r, 0);
     assert_eq!(r.pauses.len(), planned, "{name}: pauses made");
     let dt = m.dt();
     let half_window = (m.ramp_cycles / 2) as f64 * dt;

@@ -44,15 +44,7 @@ fn soft(a: f32, instant: bool) -> Config {
 fn assert_soft(name: &str, cfg: &Config, r: &RunResult) -> (f64, f64, f64, f64) {
     summary(name, r);
     let m = cfg.validate::<f64, 4>().unwrap();
-    assert_eq!(r.state, RunState::Done, "{name}: {:?}", r.fault);
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{name}: {:?}",
-        r.metrics.mismatches
-    );
-    assert!(r.metrics.boundaries.len() >= 40, "{name}: few boundaries");
-    let worst = r.metrics.worst_boundary();
-    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    assert_landed(name, r, 40);
     let section = r.metrics.worst_section_long();
     let bound = m.section_bound();
     eprintln!(
@@ -69,15 +61,7 @@ fn assert_soft(name: &str, cfg: &Config, r: &RunResult) -> (f64, f64, f64, f64) 
         section * 100.0,
         bound * 100.0
     );
-    for (a, axis) in ["X", "Y"].iter().enumerate() {
-        let limit = m.motion.max_accel[a];
-        assert!(
-            r.axis_accel[a] <= limit * ACCEL_SLACK,
-            "{name}: {axis} at {:.0} mm/s^2 (at {:.4} s) over the {limit} limit",
-            r.axis_accel[a],
-            r.axis_accel_at[a]
-        );
-    }
+    assert_axes_within(name, &m, r, ACCEL_SLACK);
     (section, bound, r.axis_accel[0], r.axis_accel[1])
 }
 

@@ -22,25 +22,7 @@ fn assert_part_on(
 ) {
     summary(name, r);
     let m = cfg.validate::<f64, 4>().unwrap();
-    assert_eq!(
-        r.state,
-        RunState::Done,
-        "{name}: ended in {:?} {:?}",
-        r.state,
-        r.fault
-    );
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{name}: {:?}",
-        r.metrics.mismatches
-    );
-    assert!(
-        r.metrics.boundaries.len() >= boundaries_at_least,
-        "{name}: only {} boundaries measured",
-        r.metrics.boundaries.len()
-    );
-    let worst = r.metrics.worst_boundary();
-    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    assert_landed(name, r, boundaries_at_least);
     if m.ramp_cycles > 1 {
         // The head ramps through the flow's steps: the section is held over 0.2 mm of
         // bead, within what the ramp costs at this acceleration (`section_bound`).

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use dollop::config::Config;
+use dollop::RunState;
 use dollop_sim::designs::{boustrophedon, Fill, Job};
 use dollop_sim::{RunOptions, RunResult};
 
@@ -27,6 +28,51 @@ pub fn fill(width: f64, rows: usize, layers: usize) -> Fill {
 
 pub fn job(f: &Fill, m: impl Fn(f64, f64, usize) -> u8) -> Job {
     boustrophedon(f, m)
+}
+
+/// The run ended Done with every material where the design has it: at least
+/// `boundaries_at_least` boundaries measured, each within 0.05 mm of the design. Returns
+/// the worst boundary offset, mm.
+pub fn assert_landed(name: &str, r: &RunResult, boundaries_at_least: usize) -> f64 {
+    assert_eq!(
+        r.state,
+        RunState::Done,
+        "{name}: ended in {:?} {:?}",
+        r.state,
+        r.fault
+    );
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{name}: {:?}",
+        r.metrics.mismatches
+    );
+    assert!(
+        r.metrics.boundaries.len() >= boundaries_at_least,
+        "{name}: only {} boundaries measured",
+        r.metrics.boundaries.len()
+    );
+    let worst = r.metrics.worst_boundary();
+    assert!(worst <= 0.05, "{name}: a boundary landed {worst:.4} mm off");
+    worst
+}
+
+/// Each of X and Y at most `slack` times its acceleration limit (1 ms central differences
+/// of the commanded position while a valve is open).
+pub fn assert_axes_within(
+    name: &str,
+    m: &dollop::config::Machine<f64, 4>,
+    r: &RunResult,
+    slack: f64,
+) {
+    for (a, axis) in ["X", "Y"].iter().enumerate() {
+        let limit = m.motion.max_accel[a];
+        assert!(
+            r.axis_accel[a] <= limit * slack,
+            "{name}: {axis} at {:.0} mm/s^2 (at {:.4} s) over the {limit} limit",
+            r.axis_accel[a],
+            r.axis_accel_at[a]
+        );
+    }
 }
 
 pub fn run(cfg: &Config, job: &Job) -> RunResult {
