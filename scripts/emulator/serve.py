@@ -399,7 +399,7 @@ def checks(r, fol, b, dash, res, wall, virtual):
     if "pause" in r:
         ok = r["pause"] == "ok" and r["held_edges"] == 0 and r["held_opens"] == 0 and r["held_mask"] == 0
         fig = r["pause"] if r["pause"] != "ok" else (
-            "pause asked at %.1f %% (%r), shown paused at the bead's end, %.1f %% (command %d); held 2 s wall: %d STEP "
+            "pause asked at %.1f %% (%r), shown paused at %.1f %% (command %d); held 2 s wall: %d STEP "
             "edges, %d valve-open writes; resume: %r; the pins are compared from the first change after it" % (
                 100 * r["pause_asked"], r["pause_msg"], 100 * r["paused_view"]["progress"],
                 r["paused_view"]["command"], r["held_edges"],

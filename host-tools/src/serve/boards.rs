@@ -594,7 +594,7 @@ impl Worker {
                 self.client()?
                     .command(&Request::Pause)
                     .map_err(|e| e.to_string())?;
-                Ok("pausing after the current bead (valves closed)".into())
+                Ok("pausing: the valves shut where the bead's tail lands, and the head stops there".into())
             }
             Order::Resume => {
                 self.client()?
