@@ -194,7 +194,8 @@ pub fn report_text(
         "bead section      {:.4} .. {:.4} of S = {:.3} mm^2 (over every 0.02 mm of bead)\n",
         m.section_range.0, m.section_range.1, r.bead_area
     ));
-    let bound = section_bound(config);
+    let bounds = Bounds::of(config);
+    let bound = bounds.section;
     s.push_str(&format!(
         "section 0.2 mm    {:.4} .. {:.4} of S over every {} mm of bead (bound: within {:.2} %)\n",
         m.section_long_range.0,
@@ -218,10 +219,10 @@ pub fn report_text(
         "off the path      {:.4} mm^3 landed between beads\n",
         m.off_path_volume
     ));
-    for w in warnings(r, config) {
+    for w in warnings(r, config, &bounds) {
         s.push_str(&format!("WARNING: {w}\n"));
     }
-    pause_lines(&mut s, r, config);
+    pause_lines(&mut s, r, &bounds);
     s.push_str(&format!(
         "metered by        {}\n",
         if plant {
@@ -233,14 +234,29 @@ pub fn report_text(
     s
 }
 
-/// The section bound over `SECTION_WINDOW_MM` the machine allows (`Machine::section_bound`:
-/// 1 %, or what its ramps through the flow's steps force); 1 % for a config that does not
-/// validate (the run would not have happened).
-fn section_bound(config: &Config) -> f64 {
-    config
-        .validate::<f64, { slicer::INLETS }>()
-        .map(|m| m.section_bound())
-        .unwrap_or(dollop::config::SECTION_BAND)
+/// What the report holds a run to, from one validation of its config (a syringe
+/// machine's walks its lag curves): the section bound over `SECTION_WINDOW_MM`
+/// (`Machine::section_bound`: 1 %, or what its ramps through the flow's steps force) and
+/// the machine's top flow (fastest bead speed times the section, mm^3/s). A config that
+/// does not validate (the run would not have happened) gets 1 % and no top flow.
+pub struct Bounds {
+    section: f64,
+    top_flow: f64,
+}
+
+impl Bounds {
+    pub fn of(config: &Config) -> Self {
+        match config.validate::<f64, { slicer::INLETS }>() {
+            Ok(m) => Bounds {
+                section: m.section_bound(),
+                top_flow: m.v_flow_max * m.bead_area,
+            },
+            Err(_) => Bounds {
+                section: dollop::config::SECTION_BAND,
+                top_flow: 0.0,
+            },
+        }
+    }
 }
 
 /// Slack on the X/Y acceleration limit for the measurement: 1 ms second differences of
@@ -253,10 +269,10 @@ pub const ACCEL_SLACK: f64 = 1.02;
 /// open) against its limit. The report
 /// prints each after `WARNING:`; the exit status stays 0 (as for a boundary far off:
 /// a fault or a wrong material sequence is what fails a run).
-pub fn warnings(r: &RunResult, config: &Config) -> Vec<String> {
+pub fn warnings(r: &RunResult, config: &Config, bounds: &Bounds) -> Vec<String> {
     let mut w = Vec::new();
     let m = &r.metrics;
-    let bound = section_bound(config);
+    let bound = bounds.section;
     let off = m.worst_section_long();
     if off > bound {
         w.push(format!(
@@ -388,7 +404,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
         print!("{}", report_text(&result, &config, plant, wall));
     } else {
-        for w in warnings(&result, &config) {
+        for w in warnings(&result, &config, &Bounds::of(&config)) {
             eprintln!("dollop: WARNING: {w}");
         }
     }
@@ -405,12 +421,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 }
 
 /// The report's lines for each pause: request, pause point, latencies, seam, flow.
-fn pause_lines(s: &mut String, r: &RunResult, config: &Config) {
-    // The machine's top flow (fastest bead speed times the section), for the flow at rest.
-    let top = config
-        .validate::<f64, { slicer::INLETS }>()
-        .map(|m| m.v_flow_max * m.bead_area)
-        .unwrap_or(0.0);
+fn pause_lines(s: &mut String, r: &RunResult, bounds: &Bounds) {
+    let top = bounds.top_flow;
     let f = |t: Option<f64>| t.map_or("never".to_string(), |t| format!("{:.1} ms", t * 1e3));
     for (k, p) in r.pauses.iter().enumerate() {
         s.push_str(&format!(
