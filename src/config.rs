@@ -9,6 +9,9 @@ use crate::vol::Vol;
 use core::fmt;
 use serde::{Deserialize, Serialize};
 
+mod pause;
+pub use pause::{Park, PauseConfig};
+
 /// Most inlets a config can list (the wire and file formats' limit); a build supports
 /// `N <= MAX_CONFIG_INLETS` of them and refuses configs with more.
 pub const MAX_CONFIG_INLETS: usize = 8;
@@ -29,6 +32,9 @@ pub struct Config {
     /// One entry per inlet (valve + material), in valve order.
     #[serde(rename = "inlet")]
     pub inlets: heapless::Vec<InletConfig, MAX_CONFIG_INLETS>,
+    /// Pauses: where a parked pause takes the head (see `pause`).
+    #[serde(default)]
+    pub pause: PauseConfig,
 }
 
 /// The shared channel and the bead it lays.
@@ -485,6 +491,8 @@ pub struct Machine<R, const N: usize> {
     pub q_stop: R,
     /// Every inlet is a stepper-driven syringe (else every inlet is pneumatic).
     pub syringes: bool,
+    /// Where a parked pause takes the head.
+    pub park: Park<R>,
 }
 
 impl<R: Real, const N: usize> Machine<R, N> {
@@ -515,6 +523,7 @@ impl<R: Real, const N: usize> Machine<R, N> {
         ramp_offset_mm: R::ZERO,
         q_stop: R::ZERO,
         syringes: false,
+        park: Park::NONE,
     };
 
     /// Channel plus hanging filament: the volume between the junction and the plate.
@@ -1194,6 +1203,7 @@ impl Config {
             ramp_offset_mm: R::of(demand.instant * ramp_cycles as f64 * dt / 8.0),
             q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
             syringes: self.inlets.iter().all(|x| x.syringe.is_some()),
+            park: self.pause.validate(&m.travel_min_mm, &m.travel_max_mm)?,
         })
     }
 }
@@ -1242,6 +1252,7 @@ mod tests {
             },
             control: ControlConfig::default(),
             inlets,
+            pause: PauseConfig::default(),
         }
     }
 

@@ -19,7 +19,9 @@ use crate::vol::Vol;
 use heapless::Deque;
 use serde::{Deserialize, Serialize};
 
+mod park;
 mod pause;
+pub use park::{ParkStage, RefillError};
 pub use pause::{PauseInfo, ResumeError};
 
 /// Planned items (finalised print segments, travels, dwells, end) the executor holds
@@ -384,7 +386,7 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     cycle: u64,
     drivers_on: bool,
     valves_out: u32,
-    pause: pause::PauseState,
+    pause: pause::PauseState<R>,
     pending_fault: Option<Fault>,
     last_dv: Vol,
     last_q: R,
@@ -1127,8 +1129,21 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     break;
                 }
                 // Paused, the head holds still: what little still trickles below the
-                // stop threshold (micrometres of bead) stays at the pause point.
-                Phase::Paused { .. } | Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
+                // stop threshold (micrometres of bead) stays at the pause point, unless
+                // a park moves the head away and back (valves shut).
+                Phase::Paused { .. } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if self.pause.park.stage != park::ParkStage::None {
+                        self.park_cycle();
+                        // Back from a park between beads: the next item starts now.
+                        if matches!(self.phase, Phase::Idle) {
+                            continue;
+                        }
+                    }
+                    break;
+                }
+                Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
                     self.lost += dv_left;
                     break;
                 }

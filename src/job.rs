@@ -129,13 +129,33 @@ impl core::fmt::Display for JobError {
     }
 }
 
-/// Hash identifying a machine config: CRC-32 of its postcard encoding.
+/// Hash identifying a machine config: CRC-32 of its postcard encoding, the `[pause]`
+/// section left out where it is the default. A park position does not change what a job
+/// prints, and configs written before the section existed keep their hash (and the jobs
+/// sliced for them stay loadable); a non-default section still changes it, so that the
+/// host uploads a config whose park changed.
 pub fn config_hash(config: &Config) -> u32 {
     let mut buf = [0u8; 2048];
-    match postcard::to_slice(config, &mut buf) {
-        Ok(bytes) => CRC.checksum(bytes),
-        Err(_) => 0,
-    }
+    // A postcard struct is its fields back to back: the tuple encodes as the config did
+    // before `pause` was added.
+    let head = (
+        &config.channel,
+        &config.motion,
+        &config.control,
+        &config.inlets,
+    );
+    let Ok(n) = postcard::to_slice(&head, &mut buf).map(|b| b.len()) else {
+        return 0;
+    };
+    let n = if config.pause == crate::config::PauseConfig::default() {
+        n
+    } else {
+        match postcard::to_slice(&config.pause, &mut buf[n..]) {
+            Ok(b) => n + b.len(),
+            Err(_) => return 0,
+        }
+    };
+    CRC.checksum(&buf[..n])
 }
 
 /// Encodes one command into `buf`, returning the bytes used.

@@ -128,3 +128,49 @@ fn link_loss_while_printing_pauses_mid_bead() {
     assert_eq!(b.out.valves, 0);
     assert!(b.out.drivers);
 }
+
+/// Park through the link: the status reads Pausing from the first cycle after the
+/// request (before the valve decision), then Paused with the pause point as a field; the
+/// head lifts and goes to the park position (the config's default: the X/Y travel
+/// minima, 5 mm up), a refill on this pneumatic board changes nothing, and resume comes
+/// back over the pause point, lowers, and prints on from it.
+#[test]
+fn park_lifts_moves_away_and_comes_back() {
+    let mut b = board();
+    let mut h = Host::ready(&mut b, 2);
+    printing_at(&mut b, &mut h, 2.0);
+    h.ok(&mut b, &Request::Park);
+    b.advance(200);
+    assert_eq!(
+        b.snapshot().run,
+        RunState::Pausing,
+        "right after the request"
+    );
+    until_paused(&mut b, true);
+    let point = b
+        .snapshot()
+        .pause_point_um
+        .expect("pause point while paused");
+    let parked = [0, 0, point[2] + 5_000];
+    h.wait(&mut b, |s| s.control.position_um == parked);
+    let s = b.snapshot();
+    assert_eq!(s.run, RunState::Paused);
+    assert_eq!(s.pause_point_um, Some(point));
+    assert_eq!(b.out.valves, 0);
+    assert!(b.out.drivers, "drivers must hold while parked");
+    h.ok(&mut b, &Request::Refill);
+    b.advance(100_000);
+    assert_eq!(b.snapshot().position_um, parked);
+    h.ok(&mut b, &Request::Resume);
+    // Back over the point, to the step (the status counts steps of 12.5 um in X and Y).
+    let near = |p: [i32; 3]| (0..3).all(|a| (p[a] - point[a]).abs() <= 13);
+    h.wait(&mut b, |s| {
+        near(s.control.position_um) && s.control.run == RunState::Paused
+    });
+    h.wait(&mut b, |s| {
+        s.control.run == RunState::Printing && s.control.position_um[0] > point[0] + 500
+    });
+    assert_eq!(b.snapshot().pause_point_um, None);
+    assert_eq!(b.snapshot().position_um[2], point[2]);
+    h.wait(&mut b, |s| s.control.mode == Mode::Idle);
+}

@@ -54,6 +54,7 @@ fn config(mu_cur: f32, mu_nxt: f32) -> Config {
         },
         control: ControlConfig { rate_hz: 10_000 },
         inlets,
+        pause: Default::default(),
     }
 }
 

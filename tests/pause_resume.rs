@@ -58,7 +58,7 @@ fn random_plan(rng: &mut Rng, t_end: f64, n: usize) -> PausePlan {
     requests.sort_by(|a, b| a.0.total_cmp(&b.0));
     PausePlan {
         requests,
-        resume_at: Vec::new(),
+        ..Default::default()
     }
 }
 
@@ -316,7 +316,7 @@ fn edge_cases_switch_corner_prime_last_segment_twice() {
             let n = requests.len();
             let plan = PausePlan {
                 requests,
-                resume_at: Vec::new(),
+                ..Default::default()
             };
             let run = run_paused(&cfg, &j, &plan);
             assert_paused(&format!("{what}/{cfg_name}"), &cfg, &run, n);
@@ -332,7 +332,7 @@ fn one_second_and_ten_minute_pauses() {
     let j = small();
     let plan = PausePlan {
         requests: vec![(0.6, 1.0), (3.0, 600.0)],
-        resume_at: Vec::new(),
+        ..Default::default()
     };
     let t0 = std::time::Instant::now();
     let r = run_paused(&cfg, &j, &plan);

@@ -27,8 +27,9 @@ enum Command {
     Send(cmd::link::SendArgs),
     /// Show the board's state.
     Status(cmd::link::PortArgs),
-    /// Pause the print mid-bead (valves shut, head stopped), until resumed.
-    Pause(cmd::link::PortArgs),
+    /// Pause the print mid-bead (valves shut, head stopped), until resumed; `--park`
+    /// lifts and moves to the park position, `--refill` retracts syringe plungers.
+    Pause(cmd::link::PauseArgs),
     /// Resume a paused print.
     Resume(cmd::link::PortArgs),
     /// Abort the print: valves closed, motion stopped.

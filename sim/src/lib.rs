@@ -12,5 +12,5 @@ pub mod run;
 
 pub use designs::Job;
 pub use metrics::Metrics;
-pub use pause::{PausePlan, PauseRecord};
+pub use pause::{ParkRecord, PausePlan, PauseRecord};
 pub use run::{run, run_paused, run_with_plant, Cycle, RunOptions, RunResult, SimError};

@@ -17,6 +17,11 @@ pub struct PausePlan {
     /// first cycle at or after it once the head rests, instead of a wait after the rest
     /// (to replay a board's pause, as the firmware-in-the-loop check does).
     pub resume_at: Vec<f64>,
+    /// Park each pause (`Executor::park`): lift and move to the park position once at
+    /// rest, back before the flow restarts.
+    pub park: bool,
+    /// On a syringe machine, refill (`Executor::refill`) at each park position.
+    pub refill: bool,
 }
 
 impl PausePlan {
@@ -26,7 +31,7 @@ impl PausePlan {
         requests.sort_by(|a, b| a.0.total_cmp(&b.0));
         PausePlan {
             requests,
-            resume_at: Vec::new(),
+            ..Default::default()
         }
     }
 }
@@ -66,6 +71,27 @@ pub struct PauseRecord {
     pub seam_section: (f64, f64),
     /// The seam was measured (mid-bead pause, 1 mm of bead after the resume).
     pub seam_measured: bool,
+    /// A parked pause's excursion, as the outputs made it.
+    pub park: Option<ParkRecord>,
+}
+
+/// A parked pause's excursion from the pause point and back (outputs).
+#[derive(Clone, Debug, Default)]
+pub struct ParkRecord {
+    /// When the head left the pause point, s.
+    pub t_left: f64,
+    /// When the plan reached the park position, s.
+    pub t_parked: Option<f64>,
+    /// When the head was back on the pause point, s.
+    pub t_back: Option<f64>,
+    /// Highest Z above the pause point, mm.
+    pub lift_mm: f64,
+    /// The XY farthest from the pause point the head reached, mm.
+    pub far_xy: [f64; 2],
+    /// A refill was asked at the park position and done.
+    pub refilled: bool,
+    /// Largest plunger retraction of the refill, steps (E axes).
+    pub retract_steps: i64,
 }
 
 impl PauseRecord {
@@ -133,6 +159,14 @@ pub(crate) struct Seen {
     pub valves: u32,
     pub landed: f64,
     pub q_plant: f64,
+    /// A park has the head off the pause point: `pos` then stays the pause point, and
+    /// `raw` is where the outputs are.
+    pub off_point: bool,
+    pub raw: [f64; 3],
+    /// Z of the pause point (outputs), mm.
+    pub point_z: f64,
+    /// The plan is at the park position.
+    pub parked: bool,
 }
 
 impl Pauser {
@@ -182,6 +216,7 @@ impl Pauser {
         let mut action = Action::None;
         let (s_now, bead_area) = (self.s, self.bead_area);
         if let Some(a) = self.active.as_mut() {
+            park_cycle(&mut a.rec, c);
             if a.rec.t_shut.is_none() && c.valves == 0 {
                 a.rec.t_shut = Some(c.t);
             }
@@ -208,9 +243,10 @@ impl Pauser {
                 } else if matches!(c.state, RunState::Done | RunState::Aborted) {
                     a.resumed = true;
                 }
-            } else if a.rec.at_bead_end
-                || a.s_rest.is_some_and(|r| s_now > r + SEAM_MM + SECTION_MM)
-                || matches!(c.state, RunState::Done | RunState::Aborted)
+            } else if !c.off_point
+                && (a.rec.at_bead_end
+                    || a.s_rest.is_some_and(|r| s_now > r + SEAM_MM + SECTION_MM)
+                    || matches!(c.state, RunState::Done | RunState::Aborted))
             {
                 let mut a = self.active.take().expect("active");
                 if !a.rec.at_bead_end {
@@ -253,12 +289,47 @@ impl Pauser {
         }
     }
 
+    /// A refill at the active pause's park position retracted the plungers by up to
+    /// `steps`.
+    pub fn refilled(&mut self, steps: i64) {
+        if let Some(p) = self.active.as_mut().and_then(|a| a.rec.park.as_mut()) {
+            p.refilled = true;
+            p.retract_steps = steps;
+        }
+    }
+
     /// The records, a pause still open at the run's end included.
     pub fn finish(mut self) -> Vec<PauseRecord> {
         if let Some(a) = self.active.take() {
             self.records.push(a.rec);
         }
         self.records
+    }
+}
+
+/// A park's figures: the excursion from the pause point (`c.pos` holds it while off).
+fn park_cycle(rec: &mut PauseRecord, c: &Seen) {
+    if !c.off_point {
+        if let Some(p) = rec.park.as_mut() {
+            p.t_back.get_or_insert(c.t);
+        }
+        return;
+    }
+    let p = rec.park.get_or_insert_with(|| ParkRecord {
+        t_left: c.t,
+        far_xy: c.pos,
+        ..Default::default()
+    });
+    if p.t_back.is_some() {
+        return;
+    }
+    let d = |xy: [f64; 2]| (xy[0] - c.pos[0]).hypot(xy[1] - c.pos[1]);
+    if d([c.raw[0], c.raw[1]]) > d(p.far_xy) {
+        p.far_xy = [c.raw[0], c.raw[1]];
+    }
+    p.lift_mm = p.lift_mm.max(c.raw[2] - c.point_z);
+    if c.parked {
+        p.t_parked.get_or_insert(c.t);
     }
 }
 

@@ -7,7 +7,7 @@ use crate::metrics::{CycleIn, Meter, Metrics};
 use crate::pause::{Action, PausePlan, PauseRecord, Pauser, Seen};
 use crate::plant::Plant;
 use dollop::config::Config;
-use dollop::executor::PushError;
+use dollop::executor::{ParkStage, PushError};
 use dollop::{Executor, Fault, Real, RecordingOutputs, Report, RunState};
 
 /// How to run.
@@ -202,6 +202,8 @@ pub fn run_paused<R: Real>(
     // Saturates to u64::MAX for an infinite limit (and to 0 for a NaN one).
     let max_cycles = (opts.max_time_s / dt) as u64;
     let mut changes = Vec::new();
+    let mut park_view = ParkView::default();
+    let mut refill = Refill::default();
     loop {
         while next_cmd < job.commands.len() && exec.room() > 0 {
             match exec.push(job.commands[next_cmd]) {
@@ -270,7 +272,14 @@ pub fn run_paused<R: Real>(
             RunState::Printing | RunState::Pausing | RunState::Paused
         );
         let on_bead = printing || report.state == RunState::Settling;
-        let pos = [report.position[0].to_f64(), report.position[1].to_f64()];
+        let raw = [
+            report.position[0].to_f64(),
+            report.position[1].to_f64(),
+            report.position[2].to_f64(),
+        ];
+        // A park's excursion is no path: the meters see the head stay on the pause point.
+        let off_point = park_view.cycle(exec.parked_off_point(), raw);
+        let pos = [park_view.point[0], park_view.point[1]];
         meter.cycle(CycleIn {
             bead_command: on_bead.then_some(report.command_index),
             printing,
@@ -342,8 +351,14 @@ pub fn run_paused<R: Real>(
                 valves: out.valves,
                 landed: landed_volume,
                 q_plant: plant.as_ref().map_or(report.q.to_f64(), |p| p.q()),
+                off_point,
+                raw,
+                point_z: park_view.point[2],
+                parked: exec.park_stage() == ParkStage::Parked,
             };
+            refill.cycle(&mut exec, pauses.refill, &out, &mut pauser);
             match pauser.cycle(&seen, dt) {
+                Action::Pause if pauses.park => exec.park(),
                 Action::Pause => exec.pause(),
                 Action::Resume => {
                     // Refused only if the job ended meanwhile; the record shows it.
@@ -386,6 +401,76 @@ pub fn run_paused<R: Real>(
         }
         if cycle > max_cycles {
             return Err(SimError::Timeout(opts.max_time_s));
+        }
+    }
+}
+
+/// The pause point while a park has the head off it (else where the head is).
+#[derive(Default)]
+struct ParkView {
+    point: [f64; 3],
+    off: bool,
+}
+
+impl ParkView {
+    /// Feeds the outputs' position and whether the plan is off the point; true while off.
+    /// The executor holds the head still for a ramp window at each end of a park, so the
+    /// outputs are on the point (exactly) the cycle before the plan leaves it and when
+    /// it says it is back.
+    fn cycle(&mut self, off: bool, raw: [f64; 3]) -> bool {
+        if !off {
+            self.point = raw;
+        }
+        self.off = off;
+        self.off
+    }
+}
+
+/// A refill asked at each park position (syringe machines), and its retraction measured.
+#[derive(Default)]
+struct Refill {
+    asked: bool,
+    /// This park's refill is over.
+    done: bool,
+    e_at_ask: Vec<i64>,
+    done_before: u32,
+}
+
+impl Refill {
+    fn cycle<R: Real>(
+        &mut self,
+        exec: &mut Executor<R>,
+        wanted: bool,
+        out: &RecordingOutputs,
+        pauser: &mut Pauser,
+    ) {
+        if !wanted {
+            return;
+        }
+        let e = || out.position[3..].to_vec();
+        if !self.asked
+            && !self.done
+            && exec.park_stage() == ParkStage::Parked
+            && exec.refill().is_ok()
+        {
+            self.asked = true;
+            self.e_at_ask = e();
+            self.done_before = exec.refills();
+        } else if self.asked && exec.refills() > self.done_before {
+            let now = e();
+            let back = self
+                .e_at_ask
+                .iter()
+                .zip(now.iter())
+                .map(|(a, b)| a - b)
+                .max()
+                .unwrap_or(0);
+            pauser.refilled(back);
+            self.asked = false;
+            self.done = true;
+        }
+        if exec.park_stage() == ParkStage::None {
+            self.done = false;
         }
     }
 }

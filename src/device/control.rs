@@ -224,12 +224,12 @@ impl Control {
         let mode = self.mode();
         let (run, command, speed, q) = match (&self.report, self.exec.as_ref()) {
             (Some(r), Some(e)) => (
-                e.state(),
+                e.status_state(),
                 r.command_index.saturating_sub(LEAD_IN),
                 r.speed,
                 r.q,
             ),
-            (None, Some(e)) => (e.state(), 0, 0.0, 0.0),
+            (None, Some(e)) => (e.status_state(), 0, 0.0, 0.0),
             _ => (RunState::Idle, 0, 0.0, 0.0),
         };
         let mut position_um = [0i32; 3];
@@ -253,6 +253,7 @@ impl Control {
             epoch: self.epoch,
             speed_mm_s: speed,
             q_mm3_s: q,
+            pause_point_um: self.exec.as_ref().and_then(|e| e.pause_point_um()),
         }
     }
 
@@ -352,6 +353,18 @@ impl Control {
             Order::Pause => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     e.pause();
+                }
+            }
+            Order::Park => {
+                if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
+                    e.park();
+                }
+            }
+            // Refused by the executor when not parked or not a syringe machine; the
+            // link has checked that a job is paused.
+            Order::Refill => {
+                if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
+                    let _ = e.refill();
                 }
             }
             Order::Resume => {

@@ -648,6 +648,18 @@ impl<S: JobStore> Core<S> {
                 order(port, Order::Pause)?;
                 Ok(Reply::Ack)
             }
+            Request::Park => {
+                order(port, Order::Park)?;
+                Ok(Reply::Ack)
+            }
+            Request::Refill => {
+                halted()?;
+                if snap.mode != Mode::Job || snap.run != RunState::Paused {
+                    return Err(Refusal::NotPaused { run: snap.run });
+                }
+                order(port, Order::Refill)?;
+                Ok(Reply::Ack)
+            }
             Request::Resume => {
                 halted()?;
                 if snap.mode != Mode::Job

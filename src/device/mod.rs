@@ -82,6 +82,10 @@ pub enum Order {
     Settings(Settings),
     /// A validated machine waits in the mailbox.
     LoadConfig,
+    /// Pause, then park (`Executor::park`).
+    Park,
+    /// Retract the plungers for a refill while parked (`Executor::refill`).
+    Refill,
 }
 
 /// One job command for the control loop, tagged with its job number.

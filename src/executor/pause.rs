@@ -16,6 +16,7 @@
 //! `Machine::q_stop`) one tail later, plus half a ramp window on machines with speed
 //! ramps.
 
+use super::park::ParkState;
 use super::{Executor, Phase};
 use crate::flow_model::predict::Goal;
 use crate::real::Real;
@@ -55,19 +56,22 @@ impl core::fmt::Display for ResumeError {
 
 /// The pause request and the latest pause's record.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct PauseState {
+pub(super) struct PauseState<R> {
     /// A pause is requested (or in effect) and not yet resumed.
     pub requested: bool,
     /// Resumed mid-bead, the flow not yet above the stop threshold again.
     pub restarting: bool,
     pub info: Option<PauseInfo>,
+    /// A parked pause's excursion (`park.rs`).
+    pub park: ParkState<R>,
 }
 
-impl PauseState {
-    pub const NONE: PauseState = PauseState {
+impl<R: Real> PauseState<R> {
+    pub const NONE: PauseState<R> = PauseState {
         requested: false,
         restarting: false,
         info: None,
+        park: ParkState::NONE,
     };
 }
 
@@ -112,7 +116,18 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// the nozzle (the volume clock). While the head still follows the tail, the flow
     /// restarts from there; a request whose valves have not shut yet is withdrawn.
     /// Refused when nothing is paused.
+    /// With a park under way the head first goes back over the pause point and lowers
+    /// onto it (`park.rs`); the flow restarts once it is there.
     pub fn resume(&mut self) -> Result<(), ResumeError> {
+        if matches!(self.phase, Phase::Paused { .. }) && self.park_resume() {
+            return Ok(());
+        }
+        self.pause.park.wanted = false;
+        self.restart_flow()
+    }
+
+    /// `resume`'s flow restart, at once (the head is on the pause point).
+    pub(super) fn restart_flow(&mut self) -> Result<(), ResumeError> {
         match self.phase {
             Phase::Pausing | Phase::Paused { on_bead: true } => {
                 self.phase = Phase::Print { stopping: false };
@@ -154,6 +169,27 @@ impl<R: Real, const N: usize> Executor<R, N> {
             return false;
         }
         !self.pause.restarting
+    }
+
+    /// The run state for status: `state`, but a pause request still waiting for its
+    /// valve decision reads Pausing rather than Printing. Not in the tick's report (the
+    /// tick's instruction budget): for status, which asks at its own pace.
+    pub fn status_state(&self) -> crate::executor::RunState {
+        match self.state() {
+            crate::executor::RunState::Printing if self.pause.requested => {
+                crate::executor::RunState::Pausing
+            }
+            s => s,
+        }
+    }
+
+    /// The pause point (plan position, micrometres) while a pause is in effect: from
+    /// the head's rest until the flow restarts (a park's excursion included).
+    pub fn pause_point_um(&self) -> Option<[i32; 3]> {
+        self.pause
+            .info
+            .filter(|i| self.pause.requested && i.rest_cycle.is_some())
+            .map(|i| i.position_um)
     }
 
     /// The latest pause (requested, in effect or resumed) since the job began.
@@ -211,6 +247,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         if matches!(self.phase, Phase::Pausing) && q <= self.machine.q_stop && self.acted_shut() {
             self.phase = Phase::Paused { on_bead: true };
             self.record_rest(false);
+            self.park_at_rest();
         }
         Ok(false)
     }
@@ -275,6 +312,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn pause_between_beads(&mut self) {
         self.phase = Phase::Paused { on_bead: false };
         self.record_rest(true);
+        self.park_at_rest();
     }
 
     fn record_rest(&mut self, at_bead_end: bool) {

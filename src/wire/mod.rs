@@ -31,7 +31,9 @@ pub use frame::{decode, encode, open, parse, peek_hello, seq_after, FrameReader,
 pub use msg::*;
 
 /// Version of the link protocol; changes whenever the bytes of any message change.
-pub const PROTOCOL_VERSION: u16 = 2;
+/// 3: `Request::Park` and `Request::Refill`, and the config's `pause` section (the
+/// `LoadConfig` bytes).
+pub const PROTOCOL_VERSION: u16 = 3;
 /// Largest job chunk, bytes: 16 USB full-speed packets; a multiple of the flash word.
 pub const MAX_CHUNK: usize = 256;
 /// Job chunks the device buffers (the most credit it grants). With 256-byte chunks this

@@ -113,6 +113,14 @@ pub enum Request<'a> {
         /// Open (true) or close.
         open: bool,
     },
+    /// Pauses as `Pause` does, then parks: once the head rests at the pause point it
+    /// lifts Z by the config's `pause.park_lift_mm` and moves to `pause.park_position_mm`
+    /// (asked while paused, it parks from the pause point). `Resume` comes back over the
+    /// pause point, lowers, then restarts the flow. (Protocol 3.)
+    Park,
+    /// Syringe machines, while parked: every plunger retracts to where its fill began
+    /// and counts from there (refill the syringes, then `Resume`). (Protocol 3.)
+    Refill,
 }
 
 /// What the device answers. `Hello` must stay the first variant.
@@ -444,6 +452,9 @@ pub struct Snapshot {
     pub speed_mm_s: f32,
     /// Flow, mm^3/s.
     pub q_mm3_s: f32,
+    /// While a pause is in effect (the head came to rest; parked or not): the pause
+    /// point, micrometres, where the print goes on from. (Protocol 3.)
+    pub pause_point_um: Option<[i32; 3]>,
 }
 
 impl Snapshot {
@@ -461,6 +472,7 @@ impl Snapshot {
         epoch: 0,
         speed_mm_s: 0.0,
         q_mm3_s: 0.0,
+        pause_point_um: None,
     };
 }
 

@@ -24,6 +24,22 @@ pub struct PortArgs {
     pub port: Option<String>,
 }
 
+/// Arguments of `dollop pause`.
+#[derive(clap::Args, Debug)]
+pub struct PauseArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Park once the head rests: lift Z by the config's `pause.park_lift_mm` and move to
+    /// `pause.park_position_mm`; `dollop resume` comes back, lowers, then prints on.
+    /// Asked while paused, it parks from the pause point.
+    #[arg(long)]
+    pub park: bool,
+    /// Syringe machines, while parked: retract every plunger to where its fill began (it
+    /// counts from there after the refill); refill, then `dollop resume`.
+    #[arg(long, conflicts_with = "park")]
+    pub refill: bool,
+}
+
 /// What the board does when the link is lost while it prints.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum LossArg {
@@ -334,6 +350,14 @@ fn describe(s: &Status) -> String {
         k.position_um[1] as f64 / 1000.0,
         k.position_um[2] as f64 / 1000.0,
     );
+    if let Some(p) = k.pause_point_um {
+        out.push_str(&format!(
+            "pause point: x {:.3} y {:.3} z {:.3} mm (the print goes on from here)\n",
+            p[0] as f64 / 1000.0,
+            p[1] as f64 / 1000.0,
+            p[2] as f64 / 1000.0
+        ));
+    }
     out.push_str(&match s.config {
         Some(h) => format!("config: {h:08x}\n"),
         None => "config: none loaded\n".into(),
@@ -383,11 +407,26 @@ pub fn status(a: PortArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `dollop pause`.
-pub fn pause(a: PortArgs) -> anyhow::Result<()> {
-    let mut c = connect(&a)?;
-    c.command(&Request::Pause)?;
-    eprintln!("pausing: valves shut, the head stops where the paste's tail ends");
+/// `dollop pause [--park | --refill]`.
+pub fn pause(args: PauseArgs) -> anyhow::Result<()> {
+    let a = &args.port;
+    let mut c = connect(a)?;
+    if args.refill {
+        c.command(&Request::Refill)?;
+        eprintln!(
+            "refill: the plungers retract to where their fill began (if parked on a syringe machine); refill, then `dollop resume`"
+        );
+        return Ok(());
+    }
+    if args.park {
+        c.command(&Request::Park)?;
+        eprintln!(
+            "pausing to park: valves shut, the head stops where the paste's tail ends, then lifts and moves to the park position"
+        );
+    } else {
+        c.command(&Request::Pause)?;
+        eprintln!("pausing: valves shut, the head stops where the paste's tail ends");
+    }
     // The board says Pausing until the head rests at the pause point.
     let asked = Instant::now();
     while asked.elapsed() < Duration::from_secs(30) {

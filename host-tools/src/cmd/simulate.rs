@@ -58,6 +58,15 @@ pub struct Args {
         requires = "pause_at"
     )]
     pub resume_at: Vec<f64>,
+    /// Park each pause: once the head rests, lift Z and move to the config's park
+    /// position (`[pause]`); the resume comes back, lowers and restarts the flow. The
+    /// report adds the park moves and their times.
+    #[arg(long, requires = "pause_at")]
+    pub park: bool,
+    /// With `--park` on a syringe machine: refill at the park position (plungers back to
+    /// where their fill began, their count restarting there).
+    #[arg(long, requires = "park")]
+    pub refill: bool,
 }
 
 /// What `simulate_job` should produce besides the result.
@@ -348,6 +357,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let mut plan = PausePlan::uniform(&a.pause_at, a.pause_for);
     plan.resume_at = a.resume_at.clone();
+    plan.park = a.park;
+    plan.refill = a.refill;
     let job_name = a.job.display().to_string();
     let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
@@ -454,6 +465,9 @@ fn pause_lines(s: &mut String, r: &RunResult, bounds: &Bounds) {
         } else {
             s.push_str("  seam            not measured (pause between beads, or job over)\n");
         }
+        if let Some(k) = &p.park {
+            park_lines(s, k);
+        }
         let pct = |q: f64| {
             if q > 0.0 {
                 100.0 * p.q_rested_max / q
@@ -466,6 +480,29 @@ fn pause_lines(s: &mut String, r: &RunResult, bounds: &Bounds) {
             p.q_rested_max,
             pct(top),
             pct(p.q_print)
+        ));
+    }
+}
+
+/// A parked pause's lines: the excursion and its times.
+fn park_lines(s: &mut String, k: &dollop_sim::ParkRecord) {
+    let t = |x: Option<f64>| x.map_or("never".to_string(), |x| format!("{x:.4} s"));
+    s.push_str(&format!(
+        "  park            left the pause point at {:.4} s, Z up {:.3} mm, to ({:.3}, {:.3}) mm by {} (plan), back on the point at {} ({:.3} s away)
+",
+        k.t_left,
+        k.lift_mm,
+        k.far_xy[0],
+        k.far_xy[1],
+        t(k.t_parked),
+        t(k.t_back),
+        k.t_back.map_or(0.0, |b| b - k.t_left)
+    ));
+    if k.refilled {
+        s.push_str(&format!(
+            "  refill          plungers retracted {} steps to the start of their fill, counting from 0 again
+",
+            k.retract_steps
         ));
     }
 }

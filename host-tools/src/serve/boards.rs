@@ -186,6 +186,12 @@ pub struct View {
     pub queue: Vec<Queued>,
     /// Updates so far (the page shows the status is live).
     pub seq: u64,
+    /// The last pause asked from here: ms (board time) from the order to the first
+    /// status with every valve shut, and to the first reading Paused (head at rest), as
+    /// this page's status polls saw them (so late by up to a poll).
+    pub pause_latency_ms: Option<[Option<f64>; 2]>,
+    /// The pause point while a pause is in effect, mm.
+    pub pause_point: Option<[f64; 3]>,
 }
 
 /// An order for a board's worker, with where the answer goes.
@@ -198,6 +204,8 @@ pub enum Order {
     Unqueue(u64),
     /// Pause mid-bead (valves shut, head stopped at the pause point).
     Pause,
+    /// Pause, then lift and move to the config's park position.
+    Park,
     /// Resume a paused print.
     Resume,
     /// Stop now (and clear a halt).
@@ -347,6 +355,8 @@ struct Worker {
     plant_config: Option<dollop::config::Config>,
     /// The simulated board's link delays each frame this long (tests; see `SimLink`).
     frame_delay: Duration,
+    /// When the last pause (or park) was ordered, for its latency.
+    pause_asked: Option<Instant>,
 }
 
 fn mode_words(s: &Status) -> Option<String> {
@@ -385,6 +395,7 @@ impl Worker {
             next_connect: Instant::now(),
             plant_config: None,
             frame_delay: Duration::ZERO,
+            pause_asked: None,
         }
     }
 
@@ -500,6 +511,7 @@ impl Worker {
         v.homed = k.homed;
         v.valves = k.valves;
         v.position = k.position_um.map(|u| u as f64 / 1000.0);
+        v.pause_point = k.pause_point_um.map(|p| p.map(|u| u as f64 / 1000.0));
         v.speed = k.speed_mm_s as f64;
         v.flow_model = k.q_mm3_s as f64;
         let plant = match self.client.as_ref().map(|c| c.transport()) {
@@ -525,6 +537,16 @@ impl Worker {
             v.commands = commands;
         }
         v.command = k.command;
+        if let Some(t0) = self.pause_asked {
+            let ms = t0.elapsed().as_secs_f64() * 1e3 * self.speed;
+            let l = v.pause_latency_ms.get_or_insert([None; 2]);
+            if k.valves == 0 {
+                l[0].get_or_insert(ms);
+            }
+            if k.run == RunState::Paused {
+                l[1].get_or_insert(ms);
+            }
+        }
         let printing = k.mode == Mode::Job;
         if let Some(cur) = self.current.as_mut() {
             v.progress = if k.run == RunState::Done {
@@ -590,16 +612,27 @@ impl Worker {
                 }
                 Ok("removed from the queue".into())
             }
+            Order::Park => {
+                self.client()?
+                    .command(&Request::Park)
+                    .map_err(|e| e.to_string())?;
+                self.pause_asked = Some(Instant::now());
+                self.view.pause_latency_ms = None;
+                Ok("parking: the head stops at the pause point, lifts and moves to the park position; Resume brings it back".into())
+            }
             Order::Pause => {
                 self.client()?
                     .command(&Request::Pause)
                     .map_err(|e| e.to_string())?;
+                self.pause_asked = Some(Instant::now());
+                self.view.pause_latency_ms = None;
                 Ok("pausing: the valves shut where the bead's tail lands, and the head stops there".into())
             }
             Order::Resume => {
                 self.client()?
                     .command(&Request::Resume)
                     .map_err(|e| e.to_string())?;
+                self.pause_asked = None;
                 Ok("resumed".into())
             }
             Order::Abort => {

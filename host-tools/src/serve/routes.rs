@@ -511,6 +511,7 @@ async fn board_action(
         "start-next" => Order::StartNext,
         "unqueue" => Order::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
         "pause" => Order::Pause,
+        "park" => Order::Park,
         "resume" => Order::Resume,
         "abort" => {
             return match b.abort().await {

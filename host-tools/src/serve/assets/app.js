@@ -581,7 +581,7 @@ function boardCard(b) {
       el("div", { class: "upload-row", hidden: "" }, "Upload to the board: ", el("progress", { max: "1", value: "0", class: "upload-progress" }), el("span", { class: "upload-text" })),
       el("div", { class: "controls" },
         el("button", { class: "primary", "data-action": "send", onclick: () => app.job ? boardAction(id, "send", { job: app.job.id }) : toast("Slice a design first (Design page).", true) }, "Send current job"),
-        btn("Start next", "start-next"), btn("Pause", "pause"), btn("Resume", "resume"), btn("Abort", "abort"), btn("Home", "home")),
+        btn("Start next", "start-next"), btn("Pause", "pause"), btn("Park", "park"), btn("Resume", "resume"), btn("Abort", "abort"), btn("Home", "home")),
       el("div", { class: "controls" }, "Jog ", axis, mm, " mm ", btn("Jog", "jog", () => ({ axis: axis.value, mm: Number(mm.value) })),
         " Valve test: inlet ", inlet, " for ", secs, " s ", btn("Open", "valve", () => ({ inlet: Number(inlet.value), seconds: Number(secs.value) }))),
       el("div", { class: "controls" }, el("button", { class: "take", onclick: () => boardAction(id, "claim", {}, true), hidden: "" }, "Take control")),
@@ -591,6 +591,11 @@ function boardCard(b) {
 }
 
 const trails = {}; // board id -> recent head positions
+
+// A latency in ms, or a dash while it has not happened yet.
+function fmtMs(ms) {
+  return ms === null || ms === undefined ? "–" : `${ms.toFixed(0)} ms`;
+}
 
 async function drawBoard(id) {
   const b = lastBoards && lastBoards.boards[id];
@@ -609,14 +614,16 @@ async function drawBoard(id) {
   g.arc(X(b.position[0]), Y(b.position[1]), 5, 0, 2 * Math.PI);
   g.fill();
   if (b.run === "Paused") {
-    // The pause point: where the bead stopped and will go on from.
+    // The pause point: where the bead stopped and will go on from (the board's status
+    // field; the head itself may be parked elsewhere).
+    const p = b.pause_point || b.position;
     g.strokeStyle = "#2471a3";
     g.lineWidth = 2;
     g.beginPath();
-    g.arc(X(b.position[0]), Y(b.position[1]), 9, 0, 2 * Math.PI);
+    g.arc(X(p[0]), Y(p[1]), 9, 0, 2 * Math.PI);
     g.stroke();
     g.fillStyle = "#2471a3";
-    g.fillText("pause point", X(b.position[0]) + 12, Y(b.position[1]) - 8);
+    g.fillText("pause point", X(p[0]) + 12, Y(p[1]) - 8);
   }
 }
 
@@ -633,6 +640,10 @@ function renderBoards(data) {
     const pausedish = b.run === "Paused" || b.run === "Pausing";
     q('[data-action="pause"]').disabled = !(b.mode === "Job" && !pausedish);
     q('[data-action="resume"]').disabled = !(b.mode === "Job" && pausedish);
+    // Park: pause (or, paused, leave the pause point) to the config's park position; not
+    // while a park is on its way (the head is off the pause point).
+    const offPoint = b.run === "Paused" && b.pause_point && Math.hypot(b.position[0] - b.pause_point[0], b.position[1] - b.pause_point[1], b.position[2] - b.pause_point[2]) > 0.001;
+    q('[data-action="park"]').disabled = !(b.mode === "Job" && b.run !== "Done" && b.run !== "Aborted" && !offPoint);
     card.dataset.activity = b.activity;
     card.dataset.run = b.run;
     card.dataset.progress = String(b.progress);
@@ -651,7 +662,10 @@ function renderBoards(data) {
       `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  ${b.homed ? "homed" : "not homed"}\n` +
       (b.flow_source === "plant"
         ? `flow ${b.flow.toFixed(2)} mm³/s (reference plant; the board's model says ${b.flow_model.toFixed(2)})  lines ${b.line_kpa.map((p) => p.toFixed(1)).join(" / ")} kPa`
-        : `flow ${b.flow.toFixed(2)} mm³/s (the board's model)`);
+        : `flow ${b.flow.toFixed(2)} mm³/s (the board's model)`) +
+      (b.pause_latency_ms
+        ? `\npause: valves shut ${fmtMs(b.pause_latency_ms[0])}, head at rest ${fmtMs(b.pause_latency_ms[1])} after the request (as polled)`
+        : "");
     q(".live").style.whiteSpace = "pre";
     q(".upload-row").hidden = !b.upload;
     if (b.upload) {
