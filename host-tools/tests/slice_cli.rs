@@ -119,6 +119,7 @@ fn example_config_documents_every_key() {
     let mut c: Config = toml::from_str(EXAMPLE).unwrap();
     // Fill the optional parts so that serialising shows their keys too.
     c.channel.bead_area_mm2 = Some(0.48);
+    c.pause.park_position_mm = Some([0.0, 0.0]);
     c.inlets[0].syringe = Some(dollop::config::SyringeConfig {
         steps_per_mm3: 1.0,
         lag_k: 1.0,
