@@ -974,6 +974,42 @@ mod tests {
         assert_eq!(w.view.eta_s, Some(0.0));
     }
 
+    /// Park from the card: the board pauses, the view shows the latency (valves shut no
+    /// later than the head at rest) and the pause point, the head parks (lifted, off the
+    /// point) and Resume brings it back to print to the end.
+    #[test]
+    fn park_shows_latency_and_pause_point_and_resume_prints_on() {
+        let mut w = worker(50.0);
+        w.handle(Order::Send(chessboard())).expect("starts");
+        let start = Instant::now();
+        let until = |w: &mut Worker, what: &str, done: &dyn Fn(&View) -> bool| {
+            while !done(&w.view) {
+                assert!(
+                    start.elapsed() < Duration::from_secs(120),
+                    "{what}: {} at {}",
+                    w.view.activity,
+                    w.view.progress
+                );
+                w.tick();
+            }
+        };
+        until(&mut w, "printing", &|v| {
+            v.progress > 0.2 && v.run == "Printing"
+        });
+        w.handle(Order::Park).expect("parks");
+        until(&mut w, "parked", &|v| {
+            v.pause_point.is_some_and(|p| v.position[2] > p[2] + 4.9)
+        });
+        assert_eq!(w.view.activity, "paused");
+        let [shut, rest] = w.view.pause_latency_ms.expect("latency shown");
+        let (shut, rest) = (shut.expect("valves shut"), rest.expect("head at rest"));
+        assert!(shut <= rest && rest < 5_000.0, "{shut} / {rest} ms");
+        eprintln!("park from the card: valves shut {shut:.0} ms, head at rest {rest:.0} ms (polled, board time)");
+        w.handle(Order::Resume).expect("resumes");
+        until(&mut w, "resumed", &|v| v.progress >= 1.0);
+        assert_eq!(w.view.pause_point, None);
+    }
+
     /// Prints the chessboard on a simulated board whose plant is built from `plant` (None:
     /// the loaded config) and returns the flow shown and the executor's model flow, each
     /// integrated over board time from the values at each poll, mm³.
