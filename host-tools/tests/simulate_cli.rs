@@ -453,3 +453,83 @@ fn pauses_are_reported_and_bad_times_refused() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--pause-for"));
 }
+
+/// The number after `key` in `text` (the first one).
+fn figure_after(text: &str, key: &str) -> f64 {
+    let at = text
+        .find(key)
+        .unwrap_or_else(|| panic!("no {key:?} in\n{text}"))
+        + key.len();
+    let num: String = text[at..]
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
+        .collect();
+    num.parse()
+        .unwrap_or_else(|_| panic!("no number after {key:?} in\n{text}"))
+}
+
+/// `--park`: the bundled logo sliced for real and for instantaneous valves, paused at 3 %
+/// and 30 % and parked (the config's default: 5 mm up, at the X/Y travel minima): every
+/// boundary within 0.05 mm, each seam within its bounds, each park line showing the lift
+/// and the park position; `--refill` without `--park` refused.
+#[test]
+fn parked_pauses_on_the_logo_are_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let logo = repo().join("host-tools/designs/logo.png");
+    for cfg_name in ["seed-paper-valves.toml", "seed-paper.toml"] {
+        let cfg = repo().join("configs").join(cfg_name);
+        let job = dir.path().join(format!("logo-{cfg_name}.dlp"));
+        let out = dollop()
+            .arg("slice")
+            .arg(&logo)
+            .arg("--config")
+            .arg(&cfg)
+            .args(["--width-mm", "40", "--out"])
+            .arg(&job)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let out = simulate(&job, &cfg)
+            .args([
+                "--pause-at",
+                "4.3,40",
+                "--pause-for",
+                "1",
+                "--park",
+                "--report",
+            ])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let worst = figure_after(&text, "measured, worst");
+        assert!(worst <= 0.05, "{cfg_name}: boundary {worst} mm\n{text}");
+        for block in text.split("\npause ").skip(1) {
+            let gap = figure_after(block, "longest uncovered gap");
+            let hi = figure_after(block, "section over 0.2 mm").max(figure_after(block, ".. "));
+            assert!(gap <= 0.1 && hi <= 1.3, "{cfg_name}: seam\n{block}");
+            assert!(
+                block.contains("Z up 5.000 mm, to (0.000, 0.000) mm"),
+                "{cfg_name}: park\n{block}"
+            );
+            assert!(block.contains("back on the point at"), "{block}");
+        }
+        assert_eq!(text.matches("  park ").count(), 2, "{text}");
+    }
+    let (job, cfg) = write_job(dir.path());
+    let out = simulate(&job, &cfg)
+        .args(["--pause-at", "1", "--refill"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--park"));
+}

@@ -4,10 +4,10 @@
 //! the pause point does (`pause.rs`). On a syringe machine a `refill` while parked
 //! retracts every plunger to where its fill began and restarts its count there: the
 //! volume clock and the channel's slugs are untouched, so no boundary moves. The valves
-//! stay shut throughout; moves use the travel speed and the axes' limits. Each end of
-//! the excursion holds still for one ramp window, so that the outputs (half a window
-//! behind the plan with speed ramps) reach the pause point exactly before the head
-//! leaves it and again before the flow restarts.
+//! stay shut throughout; moves use the travel speed and the axes' limits. The head holds
+//! still for one ramp window at the pause point before it leaves, at the park position,
+//! and back on the pause point before the flow restarts, so that the outputs (half a
+//! window behind the plan with speed ramps) reach each exactly.
 
 use super::{Executor, Phase};
 use crate::motion::Trapezoid;
@@ -77,7 +77,7 @@ pub(super) struct ParkState<R> {
     /// The pause point, where the head returns.
     home: [R; 3],
     leg: Option<Leg<R>>,
-    /// Cycles left to hold still (`Wait`, `Land`).
+    /// Cycles left to hold still (`Wait`, `Parked`, `Land`).
     hold: u32,
     /// `resume` asked: go back once parked (and any refill retracted).
     resume_due: bool,
@@ -197,7 +197,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
             }
             ParkStage::Parked => {
-                if p.resume_due && !p.refilling {
+                if p.hold > 1 {
+                    self.pause.park.hold -= 1;
+                } else if p.resume_due && !p.refilling {
                     let mut to = p.home;
                     to[2] = self.head_pos[2];
                     self.start_leg(ParkStage::Back, to);
@@ -231,7 +233,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let xy = self.machine.park.xy_mm;
                 self.start_leg(ParkStage::Out, [xy[0], xy[1], self.head_pos[2]]);
             }
-            ParkStage::Out => self.pause.park.stage = ParkStage::Parked,
+            // Held a ramp window there before any return: the outputs reach it too.
+            ParkStage::Out => {
+                self.pause.park.stage = ParkStage::Parked;
+                self.pause.park.hold = self.machine.ramp_cycles;
+            }
             ParkStage::Back => self.start_leg(ParkStage::Lower, home),
             _ => {
                 self.head_pos = home;
