@@ -134,3 +134,29 @@ mod tests {
         s
     }
 }
+
+#[cfg(test)]
+mod hash_tests {
+    use super::*;
+    use crate::job::config_hash;
+
+    /// A default `[pause]` hashes as the config did before the section existed (its
+    /// encoding without the section's trailing bytes); any other park changes the hash.
+    #[test]
+    fn a_default_section_keeps_the_hash_and_another_changes_it() {
+        let mut c = super::super::tests::seed();
+        let mut buf = [0u8; 2048];
+        let full = postcard::to_slice(&c, &mut buf).unwrap().len();
+        let mut tail = [0u8; 32];
+        let own = postcard::to_slice(&c.pause, &mut tail).unwrap().len();
+        let legacy = crate::job::CRC.checksum(&buf[..full - own]);
+        assert_eq!(config_hash(&c), legacy);
+        c.pause.park_lift_mm = 2.0;
+        assert_ne!(config_hash(&c), legacy);
+        c.pause = PauseConfig {
+            park_position_mm: Some([0.0, 0.0]),
+            ..PauseConfig::default()
+        };
+        assert_ne!(config_hash(&c), legacy);
+    }
+}
