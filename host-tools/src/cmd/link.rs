@@ -433,12 +433,18 @@ pub fn pause(args: PauseArgs) -> anyhow::Result<()> {
         let s = c.status()?;
         let k = &s.control;
         if k.run == RunState::Paused {
+            let p = k.pause_point_um.unwrap_or(k.position_um);
             eprintln!(
-                "paused at ({:.3}, {:.3}, {:.3}) mm, {:.0} ms after the request; `dollop resume` continues",
-                k.position_um[0] as f64 / 1000.0,
-                k.position_um[1] as f64 / 1000.0,
-                k.position_um[2] as f64 / 1000.0,
-                asked.elapsed().as_secs_f64() * 1e3
+                "paused at ({:.3}, {:.3}, {:.3}) mm, {:.0} ms after the request; {}`dollop resume` continues",
+                p[0] as f64 / 1000.0,
+                p[1] as f64 / 1000.0,
+                p[2] as f64 / 1000.0,
+                asked.elapsed().as_secs_f64() * 1e3,
+                if args.park {
+                    "the head now lifts and moves to the park position (`dollop status` shows it); "
+                } else {
+                    ""
+                }
             );
             return Ok(());
         }
