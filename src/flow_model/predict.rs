@@ -613,3 +613,100 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+
+    fn pastes() -> FlowModel<f32, 4> {
+        let cfg: Config = toml::from_str(include_str!("../../configs/food-pastes.toml")).unwrap();
+        FlowModel::new(&cfg.validate::<f32, 4>().unwrap(), 0)
+    }
+
+    fn predict(model: &FlowModel<f32, 4>, goal: Goal) -> f64 {
+        let mut p = Prediction::<f32, 4>::start(model, goal);
+        loop {
+            match p.advance(model, 1) {
+                Some(Outcome::Volume(v)) => return v as f64,
+                Some(Outcome::Never) => panic!("{goal:?}: never"),
+                None => {}
+            }
+        }
+    }
+
+    /// The model stepped forward for real under the command: volume until inlet `to`
+    /// feeds the channel (a switch) or until the flow has died out (a stop).
+    fn actual(model: &FlowModel<f32, 4>, goal: Goal) -> f64 {
+        let mut m = model.clone();
+        m.command(match goal {
+            Goal::Switch(to) => 1 << to,
+            Goal::Stop => 0,
+        });
+        let mut v = 0.0f64;
+        for _ in 0..100_000 {
+            let c = m.step().unwrap();
+            if let Goal::Switch(to) = goal {
+                if c.feeding == Some(to) && c.dv.0 > 0 {
+                    return v;
+                }
+            } else if c.dv.0 == 0 && m.lines().iter().all(|l| !l.open && l.pending.is_empty()) {
+                return v;
+            }
+            v += c.dv.mm3::<f32>() as f64;
+        }
+        panic!("{goal:?}: not reached");
+    }
+
+    /// The worst errors of stop and switch predictions (to `to`) made every 10 cycles of
+    /// the first 0.2 s after commanding `open` that follows `history` (masks and the cycles
+    /// each holds), against the model stepped forward, relative to the stepped volume
+    /// plus 0.05 mm^3 (about 0.1 mm of bead: early on almost nothing flows either way, and
+    /// the error in mm^3 is what moves a boundary).
+    fn worst_after(history: &[(u32, u32)], open: u32, to: u8) -> [f64; 2] {
+        let mut m = pastes();
+        for &(mask, cycles) in history {
+            m.command(mask);
+            for _ in 0..cycles {
+                m.step().unwrap();
+            }
+        }
+        m.command(open);
+        let mut worst = [0.0f64; 2];
+        for k in 0..2_000 {
+            if k % 10 == 0 {
+                for (w, goal) in worst.iter_mut().zip([Goal::Stop, Goal::Switch(to)]) {
+                    let (p, a) = (predict(&m, goal), actual(&m, goal));
+                    *w = w.max((p - a).abs() / (a.abs() + 0.05));
+                }
+            }
+            m.step().unwrap();
+        }
+        worst
+    }
+
+    /// A flow starting from lines vented for a long time (a resume after a long pause, a
+    /// bead after a long travel or wait) is predicted as well as one from a fresh model.
+    /// Vented f32 lines keep a subnormal residue of pressure, whose cold flow solve once
+    /// gave 0.5 mm^3/s: predictions right after the restart were 0.011 mm^3 too long
+    /// (stop, 22 % on this measure) and 0.005 mm^3 (switch, 10 %). Measured now: stop
+    /// 0.54 %, switch 1.31 % after each vent, the fresh model's figures (1.32 % and 1.26 %
+    /// with mixed content).
+    #[test]
+    fn predictions_after_a_long_vent_match_the_model_stepped_forward() {
+        for (h, open, to) in [
+            (&[][..], 1, 1),
+            // 0.3 s of flow, then a 60 s pause or a 2 s idle.
+            (&[(1, 3_000), (0, 600_000)][..], 1, 1),
+            (&[(1, 3_000), (0, 20_000)][..], 1, 1),
+            // Mixed content in the channel, resuming on the second paste.
+            (&[(1, 3_000), (2, 3_000), (0, 600_000)][..], 2, 0),
+        ] {
+            let [stop, switch] = worst_after(h, open, to);
+            assert!(
+                stop < 0.02 && switch < 0.03,
+                "after {h:?}: worst relative error stop {stop:.4}, switch {switch:.4}"
+            );
+        }
+    }
+}

@@ -111,6 +111,13 @@ pub fn flow_within<R: Real>(
     } else {
         cold_guess(laws, vin, target)
     };
+    // Every material's own closed form underflowed: the flow is below the float's range
+    // (a vented line's subnormal residue of pressure). Iterating from the fallback start
+    // instead gave half of 1 mm^3/s after one step, which is what made predictions after
+    // a long pause or a long idle start from a phantom flow.
+    if q <= R::ZERO {
+        return R::ZERO;
+    }
     let two_tol = tol * R::TWO;
     for _ in 0..max_iterations {
         let d = drops(laws, vin, q);
@@ -184,7 +191,9 @@ fn drops<R: Real>(laws: &[FlowLaw<R>], vin: &[R], q: R) -> Drops<R> {
 }
 
 /// A start for a cold solve: each material's own closed form for the whole channel,
-/// weighted by its share of the volume.
+/// weighted by its share of the volume. Zero when every closed form underflows (the
+/// content's flow lies between the smallest and largest of them); 1 mm^3/s when there is
+/// no content or a closed form overflows.
 fn cold_guess<R: Real>(laws: &[FlowLaw<R>], vin: &[R], target: R) -> R {
     let mut total = R::ZERO;
     for &v in vin {
@@ -200,7 +209,7 @@ fn cold_guess<R: Real>(laws: &[FlowLaw<R>], vin: &[R], target: R) -> R {
             q += full * (v / total);
         }
     }
-    if q > R::ZERO && q.is_finite() {
+    if q.is_finite() {
         q
     } else {
         R::ONE
