@@ -1333,14 +1333,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
             } else if entry + self.window >= u_b {
                 // Behind the cursor already (job start, or a lead the prediction missed):
                 // switch at once; otherwise when the predicted lead says so.
-                // Not on a prediction made from vented lines as a pause resumes (see
-                // `pause::restarted`).
                 let due = entry >= u_b
                     || self
                         .switch
                         .answer(&self.model, Goal::Switch(m))
-                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b)
-                        && self.restarted();
+                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
                 if !due && self.work(0) {
                     self.switch.work(&self.model);
                 }
@@ -1361,8 +1358,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let due = self
                     .stop
                     .answer(&self.model, Goal::Stop)
-                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end)
-                    && self.restarted();
+                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
                 if due {
                     self.model.command(0);
                     self.want = None;

@@ -59,8 +59,6 @@ impl core::fmt::Display for ResumeError {
 pub(super) struct PauseState<R> {
     /// A pause is requested (or in effect) and not yet resumed.
     pub requested: bool,
-    /// Resumed mid-bead, the flow not yet above the stop threshold again.
-    pub restarting: bool,
     pub info: Option<PauseInfo>,
     /// A parked pause's excursion (`park.rs`).
     pub park: ParkState<R>,
@@ -69,7 +67,6 @@ pub(super) struct PauseState<R> {
 impl<R: Real> PauseState<R> {
     pub const NONE: PauseState<R> = PauseState {
         requested: false,
-        restarting: false,
         info: None,
         park: ParkState::NONE,
     };
@@ -135,12 +132,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.model.command(1 << self.entry_material);
                 self.stop.reset();
                 self.switch.reset();
-                self.pause.restarting = !self.machine.syringes;
             }
-            // The next bead starts from lines the pause may have vented as well.
             Phase::Paused { on_bead: false } => {
                 self.phase = Phase::Idle;
-                self.pause.restarting = !self.machine.syringes;
             }
             Phase::Done | Phase::Aborted | Phase::Faulted(_) => return Err(ResumeError::NotPaused),
             _ if self.pause.requested => {}
@@ -148,27 +142,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         self.pause.requested = false;
         Ok(())
-    }
-
-    /// False after a resume until the flow has reached the stop threshold again.
-    /// Predictions made from lines a long pause vented came out far too long (on the
-    /// power-law pastes a switch lead made a boundary 0.56 mm ahead of the cursor switch
-    /// at once, landing 0.53 mm early, and a stop tail ended a bead 0.54 mm short at once,
-    /// every later boundary of the job then 0.52 mm late), so until the flow is back
-    /// neither decision acts on them (a switch still does once the cursor reaches its
-    /// boundary); the flow is then still too weak to have moved the head measurably.
-    /// Pneumatic lines only: a syringe's predictions are its lag's closed forms, right
-    /// from rest, and holding them back made switches after a resume 0.053 mm late.
-    #[inline(never)]
-    pub(super) fn restarted(&mut self) -> bool {
-        if self.pause.restarting && self.last_q > self.machine.q_stop {
-            // Forget what was predicted so far: the next answers start from a flowing state.
-            self.pause.restarting = false;
-            self.switch.reset();
-            self.stop.reset();
-            return false;
-        }
-        !self.pause.restarting
     }
 
     /// The run state for status: `state`, but a pause request still waiting for its
