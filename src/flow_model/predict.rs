@@ -180,6 +180,9 @@ pub struct Prediction<R, const N: usize> {
     /// Mean junction pressure that drove `q`: the next chunk's solve starts from `q`
     /// scaled by the pressure ratio.
     p_last: R,
+    /// The staged chunk's cold start (`cold_start`), when `cold_ready`.
+    cold: R,
+    cold_ready: bool,
     p_scale: R,
     /// Syringe machines: the plungers as they would be after the hypothetical command.
     plungers: [Plunger<R>; N],
@@ -231,6 +234,8 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             vol: R::ZERO,
             q: R::ZERO,
             p_last: R::ZERO,
+            cold: R::ZERO,
+            cold_ready: false,
             p_scale: R::ZERO,
             plungers: [Plunger::IDLE; N],
             n_plungers: 0,
@@ -255,6 +260,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         self.k = next;
         self.vol = R::ZERO;
         self.is_staged = false;
+        self.cold_ready = false;
         self.syringe_stage = 0;
         self.n_plungers = model.plungers().len().min(N);
         if self.n_plungers > 0 {
@@ -325,7 +331,9 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             return self.advance_syringes(model, budget);
         }
         for _ in 0..budget {
-            let done = if self.is_staged {
+            let done = if self.is_staged && self.cold_start(model) {
+                None
+            } else if self.is_staged {
                 self.is_staged = false;
                 self.chunk_flow(model)
             } else {
@@ -425,6 +433,7 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             }
         }
         self.is_staged = true;
+        self.cold_ready = false;
         self.staged = Stage {
             j: j as u32,
             span,
@@ -559,6 +568,26 @@ impl<R: Real, const N: usize> Prediction<R, N> {
         None
     }
 
+    /// Before a staged chunk's volume: when its flow cannot start warm (no flow before,
+    /// or a mean pressure off the last chunk's by more than a factor of two; see
+    /// `chunk_volume`), works out the cold start and returns true, the unit spent.
+    fn cold_start(&mut self, model: &FlowModel<R, N>) -> bool {
+        let Some((_, imp)) = self.staged.best else {
+            return false;
+        };
+        if self.cold_ready || model.all_linear() {
+            return false;
+        }
+        let p = imp / self.staged.span;
+        let near = p < self.p_last * R::TWO && self.p_last < p * R::TWO;
+        if near && self.q > R::ZERO {
+            return false;
+        }
+        self.cold = solve::cold_start(model.laws(), &self.vin, p);
+        self.cold_ready = true;
+        true
+    }
+
     /// Volume through the channel over a chunk with pressure impulse `imp`.
     fn chunk_volume(&self, model: &FlowModel<R, N>, feeding: usize, imp: R, span: R) -> R {
         let laws = model.laws();
@@ -577,13 +606,16 @@ impl<R: Real, const N: usize> Prediction<R, N> {
             // few Pa: a million-fold rise) content of pastes with other indices puts that
             // guess orders of magnitude off, and the one step from far above only halves
             // it (a phantom 0.5 mm^3 in the first chunk of a restart): start cold there,
-            // from the content's own closed forms (0 asks `flow_step` for that).
+            // from the content's own closed forms, which `cold_start` worked out as a
+            // unit of its own.
             let p = imp / span;
-            let near = p < self.p_last * R::TWO && self.p_last < p * R::TWO;
-            let guess = if near && self.q > R::ZERO {
-                self.q * (p / self.p_last).pow_fast(R::ONE / laws[feeding].n)
+            let guess = if self.cold_ready {
+                if self.cold <= R::ZERO {
+                    return R::ZERO;
+                }
+                self.cold
             } else {
-                R::ZERO
+                self.q * (p / self.p_last).pow_fast(R::ONE / laws[feeding].n)
             };
             solve::flow_step(laws, &self.vin, p, guess) * span
         }

@@ -190,6 +190,38 @@ fn drops<R: Real>(laws: &[FlowLaw<R>], vin: &[R], q: R) -> Drops<R> {
     d
 }
 
+/// A start for `flow_step` with nothing to warm-start from: the content's own closed
+/// forms at pressure `p` (see `cold_guess`); zero where nothing flows (pressure within
+/// the yield terms, no content, or a flow below the float's range). The look-ahead works
+/// this out as a unit of its own, so that no control cycle carries it and a Newton step.
+pub fn cold_start<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R) -> R {
+    let mut yield_sum = R::ZERO;
+    let mut lin = R::ZERO;
+    let mut nonlinear = false;
+    for (law, &v) in laws.iter().zip(vin) {
+        if v > R::ZERO {
+            yield_sum += v * law.b;
+            if law.linear {
+                lin += v * law.a;
+            } else {
+                nonlinear = true;
+            }
+        }
+    }
+    let target = p - yield_sum;
+    if target <= R::ZERO {
+        R::ZERO
+    } else if !nonlinear {
+        if lin > R::ZERO {
+            target / lin
+        } else {
+            R::ZERO
+        }
+    } else {
+        cold_guess(laws, vin, target)
+    }
+}
+
 /// A start for a cold solve: each material's own closed form for the whole channel,
 /// weighted by its share of the volume. Zero when every closed form underflows (the
 /// content's flow lies between the smallest and largest of them); 1 mm^3/s when there is
