@@ -170,6 +170,18 @@ fn instantaneous_valves_at_5000_meet_the_closed_form() {
         // smaller than a channel full of one paste gives (measured 3.23 % against 3.82 %):
         // the closed form bounds them without being met.
         let low = if name.starts_with("short") { 0.0 } else { 0.9 };
+        let (b, bl) = (r.metrics.section_band(false), r.metrics.section_band(true));
+        eprintln!(
+            "{name}: band p99 - p1 {:.4} over 0.02 mm, {:.4} over 0.2 mm",
+            b.1 - b.0,
+            bl.1 - bl.0
+        );
+        // The goal on the chessboard, in its own measure (measured 0.0024 on the
+        // board and the stripes). The short features' band is not held yet (0.31 over
+        // 0.02 mm, 0.032 over 0.2 mm): every step is in a window sized for the bead starts.
+        if !name.starts_with("short") {
+            assert!(b.1 - b.0 < 0.01, "{name}: band {:?}", b);
+        }
         assert!(
             section >= low * closed && section <= 1.1 * closed,
             "{name}: measured {section} against the closed form {closed}"
