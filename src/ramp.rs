@@ -4,10 +4,12 @@
 //! the head's speed then ramps linearly over the window, centred on the step, instead of
 //! stepping; elsewhere the mean of a straight or filleted path is the path's own motion.
 //! Sizing the window is the config's call (`Machine::ramp_cycles`); this does not look at
-//! the flow.
+//! the flow. Each step of the planned velocity is then re-ramped over its own, shorter
+//! window (`crate::step_ramps`).
 
 use crate::executor::RunState;
 use crate::real::Real;
+use crate::step_ramps::StepRamps;
 
 /// Frames the ring holds: a window of up to `RAMP_CAPACITY - 1` cycles (51 ms at
 /// 10 kHz: the seed printhead's 22.5 mm/s step at 630 mm/s^2 of X/Y limit). A power of
@@ -56,6 +58,13 @@ impl<const N: usize> Frame<N> {
     };
 }
 
+/// Frames of ramp window per position unit a cycle of velocity step, for ramps within
+/// `a` (mm/s^2) at control period `dt` (s): a step of `d` units a cycle is `d / (unit dt)`
+/// mm/s, which takes `d / (unit a dt^2)` cycles at `a` (`Ramp::reset`).
+pub fn frames_per_unit(a: f32, dt: f32) -> f32 {
+    1.0 / (UNIT_PER_MM * a * dt * dt)
+}
+
 /// Converts a position in mm to the ring's unit (saturating far outside any travel).
 pub fn to_units<R: Real>(p: [R; 3]) -> [i32; 3] {
     let k = R::of(UNIT_PER_MM as f64);
@@ -81,6 +90,9 @@ pub struct Ramp<const N: usize> {
     /// Window length, cycles (odd, at most `RAMP_CAPACITY - 1`).
     window: u32,
     sum: [i32; 3],
+    /// `1 / window`, set with it (a division a tick less).
+    inv_window: f32,
+    steps: StepRamps,
 }
 
 impl<const N: usize> Ramp<N> {
@@ -91,14 +103,20 @@ impl<const N: usize> Ramp<N> {
             newest: 0,
             window: 1,
             sum: [0; 3],
+            inv_window: 1.0,
+            steps: StepRamps::new(),
         }
     }
 
     /// Window of `cycles` (made odd, clamped to the capacity), every frame `frame`: the
-    /// head at rest there.
-    pub fn reset(&mut self, cycles: u32, frame: Frame<N>) {
+    /// head at rest there. Each step of the planned velocity gets a window of
+    /// `frames_per_unit` frames per position unit (0.1 um) a cycle of the step, if that
+    /// is shorter (0: every step keeps `cycles`).
+    pub fn reset(&mut self, cycles: u32, frame: Frame<N>, frames_per_unit: f32) {
         let w = (cycles as usize).clamp(1, RAMP_CAPACITY - 1) | 1;
         self.window = w.min(RAMP_CAPACITY - 1) as u32;
+        self.inv_window = 1.0 / self.window as f32;
+        self.steps.reset(self.window, frames_per_unit);
         for f in self.ring.iter_mut() {
             *f = frame;
         }
@@ -127,6 +145,22 @@ impl<const N: usize> Ramp<N> {
         }
         self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
         self.ring[self.newest as usize] = frame;
+        // After the frame is in its slot, so that it is still built there in place.
+        let (p0, p1, p2) = (self.at(0).pos, self.at(1).pos, self.at(2).pos);
+        let d2 = [
+            p0[0]
+                .wrapping_sub(p1[0])
+                .wrapping_sub(p1[0])
+                .wrapping_add(p2[0]),
+            p0[1]
+                .wrapping_sub(p1[1])
+                .wrapping_sub(p1[1])
+                .wrapping_add(p2[1]),
+        ];
+        self.steps.tick();
+        if StepRamps::is_step(d2) {
+            self.steps.add(self.newest, d2[0], d2[1]);
+        }
     }
 
     /// The frame the outputs show now: half a window behind the newest.
@@ -150,16 +184,24 @@ impl<const N: usize> Ramp<N> {
         }
     }
 
-    /// The head position the outputs show: the mean of the window's, mm.
+    /// The head position the outputs show: the mean of the window's, mm. Inlined: the
+    /// tick's path runs it once.
+    #[inline(always)]
     pub fn position<R: Real>(&self) -> [R; 3] {
         let w = self.window as i32;
         let unit = R::ONE / R::of(UNIT_PER_MM as f64);
-        let inv_w = R::ONE / R::from_u32(self.window);
+        // f32 -> f64 -> f32 is no instruction on the chip.
+        let inv_w = R::of(self.inv_window as f64);
         let newest = self.at(0).pos;
         let mut p = [R::ZERO; 3];
         for a in 0..3 {
             let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
             p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
+        }
+        if self.steps.any() {
+            let o = self.steps.offset::<R>(self.newest);
+            p[0] -= o[0] * unit;
+            p[1] -= o[1] * unit;
         }
         p
     }
@@ -189,7 +231,7 @@ mod tests {
         let dt = 1e-4;
         let w = 25u32;
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(w, at(0.0));
+        r.reset(w, at(0.0), 0.0);
         let mut x = 0.0f64;
         let mut out = Vec::new();
         for i in 0..400 {
@@ -218,7 +260,7 @@ mod tests {
     #[test]
     fn outputs_leave_half_a_window_late_and_done_waits_for_the_window() {
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(5, Frame::IDLE);
+        r.reset(5, Frame::IDLE, 0.0);
         let mut f = Frame::IDLE;
         f.valves = 1;
         r.push(f);
