@@ -15,6 +15,7 @@ use crate::outputs::{Axis, Outputs};
 use crate::ramp::{to_units, Frame, Ramp};
 use crate::real::Real;
 use crate::step_gen::StepGen;
+use crate::step_ramps::StepRamps;
 use crate::vol::Vol;
 use heapless::Deque;
 use serde::{Deserialize, Serialize};
@@ -396,6 +397,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// The cycles planned but not yet shown by the outputs, when the head ramps through
     /// flow steps (`Machine::ramp_cycles` > 1).
     ramp: Ramp<N>,
+    /// The steps of the plan's velocity the ramp window re-ramps over their own windows.
+    step_ramps: StepRamps,
     ramped: bool,
 }
 
@@ -444,6 +447,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             plunger_steps: [0; N],
             plunger_per_cycle: [Vol::ZERO; N],
             ramp: Ramp::new(),
+            step_ramps: StepRamps::new(),
             ramped: false,
         }
     }
@@ -499,7 +503,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let f = self.frame();
             let m = &self.machine;
             let per_unit = crate::ramp::frames_per_unit(step_ramp_accel(m), m.dt().to_f32());
-            self.ramp.reset(m.ramp_cycles, f, per_unit);
+            self.ramp
+                .reset(m.ramp_cycles, f, &mut self.step_ramps, per_unit);
         }
     }
 
@@ -769,7 +774,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// fault or abort: refilling the window is 24 KiB of stores.
     fn stop_ramp(&mut self) {
         if self.ramped {
-            self.head_pos = self.ramp.position();
+            self.head_pos = self.ramp.position(&self.step_ramps);
             self.hold_ramp();
         }
     }
@@ -861,7 +866,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         for _ in 0..cycles {
             self.push_frame(dv);
         }
-        let target = self.ramp.position();
+        let target = self.ramp.position(&self.step_ramps);
         if let Err(f) = self.move_head(target, cycles, out) {
             self.safe_state(f, out);
             return Err(f);
@@ -1004,7 +1009,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// The report with speed ramps: what the outputs show, half a window behind the plan.
     /// Out of line, so that machines without ramps do not carry it in their tick.
     fn ramped_report(&self) -> Report<R> {
-        self.ramped_report_at(self.ramp.position())
+        self.ramped_report_at(self.ramp.position(&self.step_ramps))
     }
 
     /// `ramped_report` with the window's mean position already worked out (the tick has
@@ -1033,7 +1038,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     fn push_frame(&mut self, dv: Vol) {
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-        self.ramp.push(f);
+        self.ramp.push(f, &mut self.step_ramps);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.

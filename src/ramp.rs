@@ -90,9 +90,6 @@ pub struct Ramp<const N: usize> {
     /// Window length, cycles (odd, at most `RAMP_CAPACITY - 1`).
     window: u32,
     sum: [i32; 3],
-    /// `1 / window`, set with it (a division a tick less).
-    inv_window: f32,
-    steps: StepRamps,
 }
 
 impl<const N: usize> Ramp<N> {
@@ -103,20 +100,25 @@ impl<const N: usize> Ramp<N> {
             newest: 0,
             window: 1,
             sum: [0; 3],
-            inv_window: 1.0,
-            steps: StepRamps::new(),
         }
     }
 
     /// Window of `cycles` (made odd, clamped to the capacity), every frame `frame`: the
-    /// head at rest there. Each step of the planned velocity gets a window of
-    /// `frames_per_unit` frames per position unit (0.1 um) a cycle of the step, if that
-    /// is shorter (0: every step keeps `cycles`).
-    pub fn reset(&mut self, cycles: u32, frame: Frame<N>, frames_per_unit: f32) {
+    /// head at rest there. `steps` forgets its steps and re-ramps each new one over a
+    /// window of `frames_per_unit` frames per position unit (0.1 um) a cycle of the step,
+    /// if that is shorter (0: every step keeps this window). `steps` lives beside the
+    /// ring, not in it: a field more in here and the firmware built the 24 KiB ring on
+    /// the stack before copying it into its static.
+    pub fn reset(
+        &mut self,
+        cycles: u32,
+        frame: Frame<N>,
+        steps: &mut StepRamps,
+        frames_per_unit: f32,
+    ) {
         let w = (cycles as usize).clamp(1, RAMP_CAPACITY - 1) | 1;
         self.window = w.min(RAMP_CAPACITY - 1) as u32;
-        self.inv_window = 1.0 / self.window as f32;
-        self.steps.reset(self.window, frames_per_unit);
+        steps.reset(self.window, frames_per_unit);
         for f in self.ring.iter_mut() {
             *f = frame;
         }
@@ -138,7 +140,7 @@ impl<const N: usize> Ramp<N> {
     /// Adds the newest planned cycle; the oldest of the window leaves it. Inlined, so that
     /// the caller builds the frame straight into its slot.
     #[inline(always)]
-    pub fn push(&mut self, frame: Frame<N>) {
+    pub fn push(&mut self, frame: Frame<N>, steps: &mut StepRamps) {
         let leaving = self.at(self.window as usize - 1).pos;
         for ((sum, &new), &old) in self.sum.iter_mut().zip(&frame.pos).zip(&leaving) {
             *sum = sum.wrapping_add(new).wrapping_sub(old);
@@ -157,9 +159,9 @@ impl<const N: usize> Ramp<N> {
                 .wrapping_sub(p1[1])
                 .wrapping_add(p2[1]),
         ];
-        self.steps.tick();
+        steps.tick();
         if StepRamps::is_step(d2) {
-            self.steps.add(self.newest, d2[0], d2[1]);
+            steps.add(self.newest, d2[0], d2[1]);
         }
     }
 
@@ -187,19 +189,18 @@ impl<const N: usize> Ramp<N> {
     /// The head position the outputs show: the mean of the window's, mm. Inlined: the
     /// tick's path runs it once.
     #[inline(always)]
-    pub fn position<R: Real>(&self) -> [R; 3] {
+    pub fn position<R: Real>(&self, steps: &StepRamps) -> [R; 3] {
         let w = self.window as i32;
         let unit = R::ONE / R::of(UNIT_PER_MM as f64);
-        // f32 -> f64 -> f32 is no instruction on the chip.
-        let inv_w = R::of(self.inv_window as f64);
+        let inv_w = R::ONE / R::from_u32(self.window);
         let newest = self.at(0).pos;
         let mut p = [R::ZERO; 3];
         for a in 0..3 {
             let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
             p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
         }
-        if self.steps.any() {
-            let o = self.steps.offset::<R>(self.newest);
+        if steps.any() {
+            let o = steps.offset::<R>(self.newest);
             p[0] -= o[0] * unit;
             p[1] -= o[1] * unit;
         }
@@ -231,13 +232,14 @@ mod tests {
         let dt = 1e-4;
         let w = 25u32;
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(w, at(0.0), 0.0);
+        let mut st = StepRamps::new();
+        r.reset(w, at(0.0), &mut st, 0.0);
         let mut x = 0.0f64;
         let mut out = Vec::new();
         for i in 0..400 {
             x += if i < 200 { 10.0 } else { 22.5 } * dt;
-            r.push(at(x));
-            out.push(r.position::<f64>()[0]);
+            r.push(at(x), &mut st);
+            out.push(r.position::<f64>(&st)[0]);
         }
         let acc: Vec<f64> = out
             .windows(3)
@@ -260,18 +262,19 @@ mod tests {
     #[test]
     fn outputs_leave_half_a_window_late_and_done_waits_for_the_window() {
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(5, Frame::IDLE, 0.0);
+        let mut st = StepRamps::new();
+        r.reset(5, Frame::IDLE, &mut st, 0.0);
         let mut f = Frame::IDLE;
         f.valves = 1;
-        r.push(f);
-        r.push(Frame::IDLE);
+        r.push(f, &mut st);
+        r.push(Frame::IDLE, &mut st);
         assert_eq!(r.current().valves, 0);
-        r.push(Frame::IDLE);
+        r.push(Frame::IDLE, &mut st);
         assert_eq!(r.current().valves, 1, "2 cycles late");
         let mut done = Frame::IDLE;
         done.state = RunState::Done;
         for i in 0..5 {
-            r.push(done);
+            r.push(done, &mut st);
             assert_eq!(r.state() == RunState::Done, i >= 4, "cycle {i}");
         }
     }
