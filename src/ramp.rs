@@ -161,7 +161,12 @@ impl<const N: usize> Ramp<N> {
         ];
         steps.tick();
         if StepRamps::is_step(d2) {
-            steps.add(self.newest, d2[0], d2[1]);
+            // Moving before the step and after it: more than rounding either side.
+            let moved = |a: [i32; 3], b: [i32; 3]| {
+                a[0].wrapping_sub(b[0]).wrapping_abs() > 2
+                    || a[1].wrapping_sub(b[1]).wrapping_abs() > 2
+            };
+            steps.add(self.newest, d2[0], d2[1], moved(p1, p2) && moved(p0, p1));
         }
     }
 
