@@ -550,7 +550,15 @@ impl<R: Real, const N: usize> Machine<R, N> {
     /// than the ramp (a window at 22.5 mm/s and 10 ms covers 0.11 mm). With the window
     /// just long enough for the step, `w = dv / a`, this is the closed form
     /// `dv^2 / (8 a W)`: what acceleration `a` physically allows, since any speed change
-    /// of `dv` within `a` leaves some stretch that far off.
+    /// of `dv` within `a` leaves some stretch that far off. Why no speed profile does
+    /// better over `W` longer than the ramp: the head must end where the paste is, so its
+    /// lead on the paste, `E(t)`, starts and ends at 0; before the step it gains on the
+    /// old speed and after it loses on the new, and with the speed moving at most `a` the
+    /// least peak of `E` is that of the linear ramp centred on the step, `dv^2 / (8 a)`
+    /// (a lead that first went negative would add its swing to some stretch). So worst
+    /// over every 0.2 mm this bound is the floor; the percentile band the issue measures
+    /// (p99 - p1 of the section, `dollop simulate --report`'s `section band`) counts
+    /// only how much bead the ramps cover and is far below it where steps are sparse.
     pub fn section_bound(&self) -> f64 {
         (self.ramp_offset_mm.to_f64() / SECTION_WINDOW_MM).max(SECTION_BAND)
     }

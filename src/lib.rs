@@ -19,6 +19,7 @@ pub mod ramp;
 pub mod real;
 pub mod rheology;
 pub mod step_gen;
+pub mod step_ramps;
 pub mod vol;
 pub mod wire;
 

@@ -4,10 +4,12 @@
 //! the head's speed then ramps linearly over the window, centred on the step, instead of
 //! stepping; elsewhere the mean of a straight or filleted path is the path's own motion.
 //! Sizing the window is the config's call (`Machine::ramp_cycles`); this does not look at
-//! the flow.
+//! the flow. Each step of the planned velocity is then re-ramped over its own, shorter
+//! window (`crate::step_ramps`).
 
 use crate::executor::RunState;
 use crate::real::Real;
+use crate::step_ramps::StepRamps;
 
 /// Frames the ring holds: a window of up to `RAMP_CAPACITY - 1` cycles (51 ms at
 /// 10 kHz: the seed printhead's 22.5 mm/s step at 630 mm/s^2 of X/Y limit). A power of
@@ -56,6 +58,13 @@ impl<const N: usize> Frame<N> {
     };
 }
 
+/// Frames of ramp window per position unit a cycle of velocity step, for ramps within
+/// `a` (mm/s^2) at control period `dt` (s): a step of `d` units a cycle is `d / (unit dt)`
+/// mm/s, which takes `d / (unit a dt^2)` cycles at `a` (`Ramp::reset`).
+pub fn frames_per_unit(a: f32, dt: f32) -> f32 {
+    1.0 / (UNIT_PER_MM * a * dt * dt)
+}
+
 /// Converts a position in mm to the ring's unit (saturating far outside any travel).
 pub fn to_units<R: Real>(p: [R; 3]) -> [i32; 3] {
     let k = R::of(UNIT_PER_MM as f64);
@@ -95,10 +104,21 @@ impl<const N: usize> Ramp<N> {
     }
 
     /// Window of `cycles` (made odd, clamped to the capacity), every frame `frame`: the
-    /// head at rest there.
-    pub fn reset(&mut self, cycles: u32, frame: Frame<N>) {
+    /// head at rest there. `steps` forgets its steps and re-ramps each new one over a
+    /// window of `frames_per_unit` frames per position unit (0.1 um) a cycle of the step,
+    /// if that is shorter (0: every step keeps this window). `steps` lives beside the
+    /// ring, not in it: a field more in here and the firmware built the 24 KiB ring on
+    /// the stack before copying it into its static.
+    pub fn reset(
+        &mut self,
+        cycles: u32,
+        frame: Frame<N>,
+        steps: &mut StepRamps,
+        frames_per_unit: f32,
+    ) {
         let w = (cycles as usize).clamp(1, RAMP_CAPACITY - 1) | 1;
         self.window = w.min(RAMP_CAPACITY - 1) as u32;
+        steps.reset(self.window, frames_per_unit);
         for f in self.ring.iter_mut() {
             *f = frame;
         }
@@ -120,13 +140,34 @@ impl<const N: usize> Ramp<N> {
     /// Adds the newest planned cycle; the oldest of the window leaves it. Inlined, so that
     /// the caller builds the frame straight into its slot.
     #[inline(always)]
-    pub fn push(&mut self, frame: Frame<N>) {
+    pub fn push(&mut self, frame: Frame<N>, steps: &mut StepRamps) {
         let leaving = self.at(self.window as usize - 1).pos;
         for ((sum, &new), &old) in self.sum.iter_mut().zip(&frame.pos).zip(&leaving) {
             *sum = sum.wrapping_add(new).wrapping_sub(old);
         }
         self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
         self.ring[self.newest as usize] = frame;
+        // After the frame is in its slot, so that it is still built there in place.
+        let (p0, p1, p2) = (self.at(0).pos, self.at(1).pos, self.at(2).pos);
+        let d2 = [
+            p0[0]
+                .wrapping_sub(p1[0])
+                .wrapping_sub(p1[0])
+                .wrapping_add(p2[0]),
+            p0[1]
+                .wrapping_sub(p1[1])
+                .wrapping_sub(p1[1])
+                .wrapping_add(p2[1]),
+        ];
+        steps.tick();
+        if StepRamps::is_step(d2) {
+            // Moving before the step and after it: more than rounding either side.
+            let moved = |a: [i32; 3], b: [i32; 3]| {
+                a[0].wrapping_sub(b[0]).wrapping_abs() > 2
+                    || a[1].wrapping_sub(b[1]).wrapping_abs() > 2
+            };
+            steps.add(self.newest, d2[0], d2[1], moved(p1, p2) && moved(p0, p1));
+        }
     }
 
     /// The frame the outputs show now: half a window behind the newest.
@@ -150,8 +191,10 @@ impl<const N: usize> Ramp<N> {
         }
     }
 
-    /// The head position the outputs show: the mean of the window's, mm.
-    pub fn position<R: Real>(&self) -> [R; 3] {
+    /// The head position the outputs show: the mean of the window's, mm. Inlined: the
+    /// tick's path runs it once.
+    #[inline(always)]
+    pub fn position<R: Real>(&self, steps: &StepRamps) -> [R; 3] {
         let w = self.window as i32;
         let unit = R::ONE / R::of(UNIT_PER_MM as f64);
         let inv_w = R::ONE / R::from_u32(self.window);
@@ -160,6 +203,11 @@ impl<const N: usize> Ramp<N> {
         for a in 0..3 {
             let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
             p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
+        }
+        if steps.any() {
+            let o = steps.offset::<R>(self.newest);
+            p[0] -= o[0] * unit;
+            p[1] -= o[1] * unit;
         }
         p
     }
@@ -189,13 +237,14 @@ mod tests {
         let dt = 1e-4;
         let w = 25u32;
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(w, at(0.0));
+        let mut st = StepRamps::new();
+        r.reset(w, at(0.0), &mut st, 0.0);
         let mut x = 0.0f64;
         let mut out = Vec::new();
         for i in 0..400 {
             x += if i < 200 { 10.0 } else { 22.5 } * dt;
-            r.push(at(x));
-            out.push(r.position::<f64>()[0]);
+            r.push(at(x), &mut st);
+            out.push(r.position::<f64>(&st)[0]);
         }
         let acc: Vec<f64> = out
             .windows(3)
@@ -218,18 +267,19 @@ mod tests {
     #[test]
     fn outputs_leave_half_a_window_late_and_done_waits_for_the_window() {
         let mut r: Ramp<1> = Ramp::new();
-        r.reset(5, Frame::IDLE);
+        let mut st = StepRamps::new();
+        r.reset(5, Frame::IDLE, &mut st, 0.0);
         let mut f = Frame::IDLE;
         f.valves = 1;
-        r.push(f);
-        r.push(Frame::IDLE);
+        r.push(f, &mut st);
+        r.push(Frame::IDLE, &mut st);
         assert_eq!(r.current().valves, 0);
-        r.push(Frame::IDLE);
+        r.push(Frame::IDLE, &mut st);
         assert_eq!(r.current().valves, 1, "2 cycles late");
         let mut done = Frame::IDLE;
         done.state = RunState::Done;
         for i in 0..5 {
-            r.push(done);
+            r.push(done, &mut st);
             assert_eq!(r.state() == RunState::Done, i >= 4, "cycle {i}");
         }
     }

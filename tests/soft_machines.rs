@@ -133,17 +133,29 @@ fn instantaneous_valves_hold_the_section_bound_and_the_limit_on_soft_machines() 
 
 /// The closed form of `Machine::section_bound` for the steps a bead meets between its
 /// ends: a window `w` centred on a step of `dv` lays the section off by `dv w / (8 W)`
-/// over `W` = 0.2 mm. The chessboard's and the stripes' mid-bead steps are paste B's
-/// supply through a channel full of paste A against paste A's (22.48 - 10 mm/s), in the
-/// window sized for the 22.48 mm/s bead starts; their measured section is within 10 % of
-/// the closed form, and the short features' within it.
+/// over `W` = 0.2 mm, `dv^2 / (8 a W)` with the window sized to the step. The
+/// chessboard's and the stripes' mid-bead steps are paste B's supply through a channel
+/// full of paste A against paste A's (22.48 - 10 mm/s), each ramped over its own window
+/// (29 cycles; the machine's, for the 22.48 mm/s bead starts, is 49). A bead's ends keep
+/// the machine's window, so the worst over 0.2 mm is now there, `10 w / (8 W)` at the
+/// 10 mm/s print speed: each design's measured section is within 10 % of the larger.
 #[test]
 fn instantaneous_valves_at_5000_meet_the_closed_form() {
     let cfg = soft(5000.0, true);
     let m = cfg.validate::<f64, 4>().unwrap();
-    let w = m.ramp_cycles as f64 * m.period_us as f64 * 1e-6;
+    let dt = m.period_us as f64 * 1e-6;
     let dv = m.v_flow_max - cfg.motion.print_speed_mm_s as f64;
-    let closed = dv * w / (8.0 * dollop::config::SECTION_WINDOW_MM);
+    // The step's own window (`dollop::step_ramps`): the odd number of cycles that takes
+    // `dv` within the ramps' share of the limit.
+    let a = dollop::executor::step_ramp_accel(&m) as f64;
+    let w = ((dv / (a * dt)).ceil() as u32 / 2 * 2 + 1) as f64 * dt;
+    assert!(w < m.ramp_cycles as f64 * dt, "{w} s");
+    let switch = dv * w / (8.0 * dollop::config::SECTION_WINDOW_MM);
+    // A bead's ends (from or to rest at the print speed) keep the machine's window
+    // (`dollop::step_ramps`), and the 0.2 mm windows next to them count.
+    let ends = cfg.motion.print_speed_mm_s as f64 * m.ramp_cycles as f64 * dt
+        / (8.0 * dollop::config::SECTION_WINDOW_MM);
+    let closed = switch.max(ends);
     let designs = [
         ("chessboard", board()),
         ("stripes", job(&fill(24.0, 16, 1), stripes(4.0))),
@@ -160,16 +172,34 @@ fn instantaneous_valves_at_5000_meet_the_closed_form() {
         let name = format!("{name}/instant 5000");
         let (section, bound, _, _) = assert_soft(&name, &cfg, &r);
         eprintln!(
-            "{name}: closed form {:.3} % for {dv:.2} mm/s in {:.1} ms; measured {:.3} %; bound {:.3} %",
+            "{name}: closed form {:.3} % ({:.3} % for {dv:.2} mm/s in {:.1} ms, {:.3} % at the ends); measured {:.3} %; bound {:.3} %",
             closed * 100.0,
+            switch * 100.0,
             w * 1e3,
+            ends * 100.0,
             section * 100.0,
             bound * 100.0
         );
-        // Features shorter than the channel switch with a mix in it, so their steps are
-        // smaller than a channel full of one paste gives (measured 3.23 % against 3.82 %):
-        // the closed form bounds them without being met.
+        // Features shorter than the channel switch with a mix in it, so their switch steps
+        // are smaller than a channel full of one paste gives; their worst is at the bead
+        // ends (measured 3.23 % against 3.06 %), held to within 10 % of it, not from below.
         let low = if name.starts_with("short") { 0.0 } else { 0.9 };
+        let (b, bl) = (r.metrics.section_band(false), r.metrics.section_band(true));
+        eprintln!(
+            "{name}: band p99 - p1 {:.4} over 0.02 mm, {:.4} over 0.2 mm",
+            b.1 - b.0,
+            bl.1 - bl.0
+        );
+        // The goals in its own measure: the chessboard under 0.01 (measured
+        // 0.0023 over 0.02 mm on the board, 0.0021 on the stripes), the fine features
+        // under 0.02 (0.0082 over 0.2 mm; 0.059 over 0.02 mm, where each switch's ramp
+        // covers a fifth of a 0.6 mm stripe's windows; 0.31 and 0.032 when every step
+        // ramped over the bead starts' window).
+        if name.starts_with("short") {
+            assert!(bl.1 - bl.0 < 0.02, "{name}: band over 0.2 mm {:?}", bl);
+        } else {
+            assert!(b.1 - b.0 < 0.01, "{name}: band {:?}", b);
+        }
         assert!(
             section >= low * closed && section <= 1.1 * closed,
             "{name}: measured {section} against the closed form {closed}"

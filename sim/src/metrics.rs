@@ -96,6 +96,11 @@ pub struct Metrics {
     pub section_long_range: (f64, f64),
     /// Where the worst long-window cross-section occurred (x, y), mm.
     pub section_long_worst_at: [f64; 2],
+    /// Every cross-section / S over `SECTION_WINDOW_MM` windows, in bead order: for
+    /// `section_band`, the issue's own measure (a percentile range, not the worst).
+    pub section_samples: Vec<f64>,
+    /// Every cross-section / S over `SECTION_LONG_MM`, as `section_samples`.
+    pub section_long_samples: Vec<f64>,
     /// Volume landed while the head was not on a bead, mm^3.
     pub off_path_volume: f64,
     /// Landed material runs shorter than the sliver length, merged away.
@@ -118,6 +123,28 @@ impl Metrics {
     pub fn worst_section_long(&self) -> f64 {
         (1.0 - self.section_long_range.0).max(self.section_long_range.1 - 1.0)
     }
+    /// The bead width band as issue 22 measures it: p99 - p1 of the cross-section / S
+    /// (width / pitch at the layer height) over the 0.02 mm windows (`long`: 0.2 mm)
+    /// away from bead ends; returns (p1, p99). (1, 1) with no windows.
+    pub fn section_band(&self, long: bool) -> (f64, f64) {
+        let v = if long {
+            &self.section_long_samples
+        } else {
+            &self.section_samples
+        };
+        (percentile(v, 0.01), percentile(v, 0.99))
+    }
+}
+
+/// The `q` quantile of `v` (nearest rank; 1 for an empty `v`).
+fn percentile(v: &[f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return 1.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let i = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1;
+    s[i]
 }
 
 /// Path length over which one cross-section value is taken, mm. Per-cycle steps are
@@ -299,6 +326,7 @@ impl Meter {
         }
         self.metrics.section_range = (lo.min(ratio), hi.max(ratio));
         self.metrics.section_cycles += 1;
+        self.metrics.section_samples.push(ratio);
         self.recent.push_back((vol, ds));
         while self.recent.len() > 1
             && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
@@ -316,6 +344,7 @@ impl Meter {
                 self.metrics.section_long_worst_at = at;
             }
             self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
+            self.metrics.section_long_samples.push(ratio);
         }
     }
 

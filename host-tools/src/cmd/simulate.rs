@@ -212,6 +212,14 @@ pub fn report_text(
         dollop::config::SECTION_WINDOW_MM,
         bound * 100.0
     ));
+    let (b, bl) = (m.section_band(false), m.section_band(true));
+    s.push_str(&format!(
+        "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} over 0.2 mm\n",
+        b.1 - b.0,
+        b.0,
+        b.1,
+        bl.1 - bl.0
+    ));
     s.push_str(&format!(
         "axis accel        X {:.0}, Y {:.0} mm/s^2 at most while a valve is open (1 ms differences; limits X {}, Y {})\n",
         r.axis_accel[0], r.axis_accel[1], config.motion.max_accel_mm_s2[0], config.motion.max_accel_mm_s2[1]
