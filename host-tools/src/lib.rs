@@ -6,4 +6,5 @@ pub mod cmd;
 pub mod inspect;
 pub mod link;
 pub mod serve;
+pub mod simulate;
 pub mod slicer;
