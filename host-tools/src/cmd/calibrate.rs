@@ -4,6 +4,7 @@
 
 use crate::calibrate::camera::edges::Roi;
 use crate::calibrate::camera::frames;
+use crate::calibrate::camera::{parse_roi, parse_window};
 use crate::calibrate::flow::RateUnit;
 use crate::calibrate::lag::{InletKind, TimeUnit};
 use crate::calibrate::output::{self, load_config, Outputs};
@@ -133,31 +134,6 @@ struct LagArgs {
     limits: CsvLimits,
     #[command(flatten)]
     output: Output,
-}
-
-/// `X,Y,W,H` in whole pixels, as `--roi` takes it (the dashboard's field too).
-pub fn parse_roi(s: &str) -> Result<Roi, String> {
-    let v: Vec<u32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<u32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("{s:?}: expected X,Y,W,H in whole pixels"))?;
-    match v[..] {
-        [x, y, w, h] => Ok(Roi { x, y, w, h }),
-        _ => Err(format!("{s:?}: expected four numbers X,Y,W,H")),
-    }
-}
-
-/// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
-/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away). The
-/// dashboard's field is checked by this too.
-pub fn parse_window(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
-        _ => Err(format!(
-            "{s:?}: the window is an odd number of frames from 3 to 101"
-        )),
-    }
 }
 
 #[derive(clap::Args, Debug)]

@@ -252,14 +252,14 @@ impl CameraForm {
         o.target_width_mm = positive("target width", &self.target_width, "0.8 (mm)")?;
         o.nozzle_mm = positive("nozzle diameter", &self.nozzle, "0.8 (mm)")?;
         if !self.roi.trim().is_empty() {
-            o.roi = Some(crate::cmd::calibrate::parse_roi(&self.roi).map_err(|e| {
+            o.roi = Some(camera::parse_roi(&self.roi).map_err(|e| {
                 ApiError::bad(format!(
                     "region of interest {e}, or leave it empty for the whole frame"
                 ))
             })?);
         }
         if !self.window.trim().is_empty() {
-            o.window = crate::cmd::calibrate::parse_window(&self.window)
+            o.window = camera::parse_window(&self.window)
                 .map_err(|e| ApiError::bad(format!("smoothing window {e}")))?;
         }
         o.config = config;

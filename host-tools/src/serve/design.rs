@@ -4,8 +4,7 @@
 //! designs with the CLI's options into a job and its toolpath for the browser to draw.
 
 use super::error::{ApiError, ApiResult};
-use crate::cmd::slice::Args as SliceArgs;
-use crate::slicer::{self, SliceError, Sliced};
+use crate::slicer::{self, SliceError, SliceOption, SliceRequest, Sliced};
 use dollop::config::Config;
 use dollop::Command;
 use serde::{Deserialize, Serialize};
@@ -333,7 +332,8 @@ pub fn check(text: &str) -> ApiResult<Checked> {
     })
 }
 
-/// The slicing options of the page, as the CLI's flags (strings as typed; empty = unset).
+/// The slicing options of the page, by the names its form sends (`opt-width_mm`, ...;
+/// strings as typed, empty = unset). The comments give the matching `dollop slice` flag.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(default)]
 pub struct SliceForm {
@@ -379,52 +379,82 @@ fn nonempty(s: &Option<String>) -> Option<String> {
 }
 
 impl SliceForm {
-    /// The CLI's arguments for these options (so the CLI's checks apply as they are).
-    pub fn to_args(&self) -> ApiResult<SliceArgs> {
-        use clap::ValueEnum;
-        let rotate = match nonempty(&self.rotate) {
-            None => Default::default(),
-            Some(r) => ValueEnum::from_str(&r, true)
-                .map_err(|_| ApiError::bad(format!("rotate {r:?}: choose 0, 90, 180 or 270")))?,
+    /// The slice these options ask for (the command line's defaults where a field is
+    /// empty; no G-code is written from the page).
+    pub fn request(&self) -> ApiResult<SliceRequest> {
+        use crate::slicer::image::{Mirror, Rotation};
+        let rotate = match nonempty(&self.rotate).as_deref() {
+            None | Some("0") => Rotation::default(),
+            Some("90") => Rotation::R90,
+            Some("180") => Rotation::R180,
+            Some("270") => Rotation::R270,
+            Some(r) => {
+                return Err(ApiError::bad(format!(
+                    "rotate {r:?}: choose 0, 90, 180 or 270"
+                )))
+            }
         };
-        let mirror = match nonempty(&self.mirror) {
-            None => crate::slicer::image::Mirror::None,
-            Some(m) => ValueEnum::from_str(&m, true)
-                .map_err(|_| ApiError::bad(format!("mirror {m:?}: choose none, x or y")))?,
+        let mirror = match nonempty(&self.mirror)
+            .map(|m| m.to_ascii_lowercase())
+            .as_deref()
+        {
+            None | Some("none") => Mirror::None,
+            Some("x") => Mirror::X,
+            Some("y") => Mirror::Y,
+            Some(_) => {
+                let m = nonempty(&self.mirror).unwrap_or_default();
+                return Err(ApiError::bad(format!("mirror {m:?}: choose none, x or y")));
+            }
         };
-        let d = slicer::Limits::default();
-        Ok(SliceArgs {
-            designs: Vec::new(),
-            config: PathBuf::new(),
-            out: None,
-            gcode: None,
-            gcode_style: "run".into(),
-            gcode_dialect: "plain".into(),
-            gcode_ports: None,
-            gcode_max_mb: 1024,
-            preview: None,
-            preview_layer: None,
-            layers: self.layers,
+        let d = SliceRequest::default();
+        Ok(SliceRequest {
             width_mm: self.width_mm,
             height_mm: self.height_mm,
+            layers: self.layers,
             rotate,
             mirror,
             invert: self.invert,
-            threshold: self.threshold.unwrap_or(150),
+            threshold: self.threshold.unwrap_or(d.threshold),
             palette: nonempty(&self.palette),
             background: nonempty(&self.background),
-            background_tolerance: self.background_tolerance.unwrap_or(40.0),
+            background_tolerance: self.background_tolerance.unwrap_or(d.background_tolerance),
             origin: nonempty(&self.origin),
             prime_mm: self.prime_mm,
-            min_run_mm: self.min_run_mm.unwrap_or(0.1),
+            min_run_mm: self.min_run_mm.unwrap_or(d.min_run_mm),
             connect_mm: self.connect_mm,
-            max_pixels: d.max_pixels,
-            max_segments: d.max_segments,
-            max_triangles: d.max_triangles,
-            max_3mf_mb: d.max_3mf_bytes >> 20,
             markers: self.markers,
             calibration_pattern: self.calibration_pattern,
+            progress: false,
+            ..d
         })
+    }
+}
+
+/// The page's name for a request's option: its field's label (`index.html`, `opt-...`).
+pub fn field_name(o: SliceOption) -> &'static str {
+    match o {
+        SliceOption::Palette => "Palette",
+        SliceOption::Background => "Background",
+        SliceOption::BackgroundTolerance => "Background tolerance",
+        SliceOption::MinRun => "Shortest run, mm",
+        SliceOption::Origin => "Origin X,Y mm",
+        SliceOption::Layers => "Layers",
+        SliceOption::Connect => "Join rows within, mm",
+        SliceOption::Prime => "Priming bead, mm",
+        // The page writes no G-code.
+        SliceOption::GcodePorts => "G-code ports",
+    }
+}
+
+/// A slicer error as the page says it: a refused option by its field's label.
+pub fn slice_error(e: SliceError) -> ApiError {
+    match e {
+        // `Label: value problem`: the label ends in a unit, so the colon comes first.
+        SliceError::BadOption(o) => ApiError::bad(match &o.value {
+            Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
+            None => format!("{}: {}", field_name(o.option), o.problem),
+        }),
+        e => ApiError::bad(e.to_string()),
     }
 }
 
@@ -473,9 +503,8 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
             "choose a design: an image, one STL per material, or a 3MF",
         ));
     }
-    let args = form.to_args()?;
-    let mut opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
-    opts.progress = false;
+    let req = form.request()?;
+    let opts = req.options().map_err(slice_error)?;
     let dir = tempfile::tempdir()
         .map_err(|e| ApiError::internal(format!("cannot create a temporary folder: {e}")))?;
     let mut paths = Vec::new();
@@ -494,9 +523,13 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     // The slicer names the files in its messages: the user's names, not our folder's.
     let ours = format!("{}/", dir.path().display());
-    let strip = |e: slicer::SliceError| ApiError::bad(e.to_string().replace(&ours, ""));
+    let strip = |e: slicer::SliceError| {
+        let mut e = slice_error(e);
+        e.error = e.error.replace(&ours, "");
+        e
+    };
     let mut sliced = slicer::slice_files(&paths, config, &opts).map_err(strip)?;
-    if args.markers {
+    if req.markers {
         let machine = slicer::validate(Path::new("config"), config).map_err(strip)?;
         sliced = slicer::with_markers(sliced, config, &machine).map_err(strip)?;
     }
@@ -507,9 +540,8 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
 /// The calibration pattern of `dollop slice --calibration-pattern` for this config (every
 /// pair of its materials, switches at several distances), with markers.
 fn calibration_pattern(config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
-    let args = form.to_args()?;
-    let opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
-    let bad = |e: slicer::SliceError| ApiError::bad(e.to_string());
+    let opts = form.request()?.options().map_err(slice_error)?;
+    let bad = slice_error;
     let machine = slicer::validate(Path::new("config"), config).map_err(bad)?;
     let design = slicer::calibration::pattern(
         machine.inlet_count(),
@@ -925,6 +957,43 @@ mod tests {
         let p = slice(&[], &c.config, &form).expect("the pattern slices without a design");
         assert_eq!(p.name, "calibration pattern");
         assert!(figures(&p, &c.config).switches >= 2);
+    }
+
+    #[test]
+    fn a_refused_option_names_the_pages_field_not_a_flag() {
+        let c = check(seed()).expect("config");
+        let uploads = [Upload {
+            name: "chessboard.png".into(),
+            bytes: DESIGNS[1].1.to_vec(),
+        }];
+        let cases = [
+            (
+                SliceForm {
+                    min_run_mm: Some(-1.0),
+                    ..Default::default()
+                },
+                "Shortest run, mm: -1 must be 0 or more",
+            ),
+            (
+                SliceForm {
+                    origin: Some("1;2".into()),
+                    ..Default::default()
+                },
+                "Origin X,Y mm: \"1;2\" must be two numbers X,Y in mm",
+            ),
+            (
+                SliceForm {
+                    palette: Some("#zz".into()),
+                    ..Default::default()
+                },
+                "Palette: ",
+            ),
+        ];
+        for (form, want) in cases {
+            let e = slice(&uploads, &c.config, &form).expect_err("refused");
+            assert!(e.error.starts_with(want), "{}", e.error);
+            assert!(!e.error.contains("--"), "{}", e.error);
+        }
     }
 
     #[test]

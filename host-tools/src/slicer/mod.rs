@@ -20,11 +20,13 @@ pub mod markers;
 pub mod mesh;
 pub mod output;
 pub mod preview;
+pub mod request;
 pub mod threemf;
 pub mod toolpath;
 pub mod voxel;
 
-pub use error::SliceError;
+pub use error::{OptionError, SliceError, SliceOption};
+pub use request::{GcodeRequest, GcodeStyle, SliceRequest};
 pub use toolpath::{PathOptions, PathStats};
 
 use dollop::config::Config;

@@ -94,6 +94,31 @@ pub struct Calibration {
     pub verdicts: Vec<String>,
 }
 
+/// `X,Y,W,H` in whole pixels, as the command line and the dashboard take a region of interest.
+pub fn parse_roi(s: &str) -> Result<Roi, String> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected X,Y,W,H in whole pixels"))?;
+    match v[..] {
+        [x, y, w, h] => Ok(Roi { x, y, w, h }),
+        _ => Err(format!("{s:?}: expected four numbers X,Y,W,H")),
+    }
+}
+
+/// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
+/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away). Both front ends
+/// check theirs with this.
+pub fn parse_window(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
+        _ => Err(format!(
+            "{s:?}: the window is an odd number of frames from 3 to 101"
+        )),
+    }
+}
+
 fn positive(name: &str, v: f64) -> Result<f64, CalError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
