@@ -3,6 +3,7 @@
 
 pub mod calibrate;
 pub mod cmd;
+pub mod fixtures;
 pub mod inspect;
 pub mod link;
 pub mod serve;
