@@ -7,8 +7,9 @@
 //! halt. Each board has its own job queue; a finished print waits for the plate to be
 //! cleared before the next starts.
 
+use super::jobs::JobEntry;
+use super::lock::lock;
 use super::simlink::SimLink;
-use super::state::{lock, JobEntry};
 use super::Args;
 use crate::link::{
     mem_options, serial, Client, JobFile, LinkError, Options, SerialLink, Transport,

@@ -14,6 +14,7 @@ pub mod gcode_exec;
 pub mod gcode_judge;
 pub mod gcode_ramps;
 pub mod gcode_sim;
+pub mod gcode_step;
 pub mod image;
 pub mod job_file;
 pub mod markers;
