@@ -13,7 +13,7 @@ pub use client::{Client, Options, Progress};
 pub use job::JobFile;
 pub use mem::{Faults, MemLink};
 pub use serial::SerialLink;
-pub use transport::{LinkError, Transport};
+pub use transport::{Cancelled, LinkError, Transport};
 
 use dollop::wire::{self, HostHeader, Request, MAX_CHUNK, MAX_FRAME};
 use dollop::Config;
