@@ -12,7 +12,7 @@ use super::lock::lock;
 use super::simlink::SimLink;
 use super::Args;
 use crate::link::{
-    mem_options, serial, Cancelled, Client, JobFile, LinkError, Options, SerialLink, Transport,
+    mem_options, ops, serial, Cancelled, Client, JobFile, LinkError, Options, SerialLink, Transport,
 };
 use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
 use dollop::{Axis, RunState};
@@ -616,20 +616,15 @@ impl Worker {
                 self.cancel.store(false, Ordering::SeqCst);
                 let c = self.client()?;
                 let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
-                c.command(&Request::Abort).map_err(|e| e.to_string())?;
-                c.sleep(Duration::from_millis(5));
+                ops::abort(c).map_err(|e| e.to_string())?;
                 if let (Some(cur), true) = (self.current.as_mut(), printing) {
                     cur.aborted = true;
                 }
                 let Some(c) = self.client.as_mut() else {
                     return Err("the board is not connected".into());
                 };
-                let s = c.status().map_err(|e| e.to_string())?;
-                if s.control.mode == Mode::Halted {
-                    c.command(&Request::ClearFault).map_err(|e| e.to_string())?;
-                    return Ok("halt cleared; home the machine before the next job".into());
-                }
-                Ok("aborted: valves closed, drivers off".into())
+                let done = ops::clear_if_halted(c).map_err(|e| e.to_string())?;
+                Ok(done.to_string())
             }
             Order::Home(fallback) => {
                 self.ensure_config(fallback)?;
@@ -639,20 +634,10 @@ impl Worker {
                 Ok("homing".into())
             }
             Order::Jog(axis, mm, fallback) => {
-                if !mm.is_finite() || mm.abs() > 2000.0 {
-                    return Err(format!("jog distance {mm} mm is not a plausible move"));
-                }
+                let um = ops::jog_um(mm).map_err(|e| e.to_string())?;
                 self.ensure_config(fallback)?;
-                // Sent once: a jog repeated after a lost answer would move twice.
-                match self.client()?.call_once(&Request::Jog {
-                    axis,
-                    um: (mm * 1000.0).round() as i32,
-                }) {
-                    Ok(dollop::wire::Reply::Ack) => Ok(format!("jogging {axis:?} by {mm} mm")),
-                    Ok(dollop::wire::Reply::Refused(r)) => Err(LinkError::Refused(r).to_string()),
-                    Ok(other) => Err(format!("unexpected answer {other:?}")),
-                    Err(e) => Err(e.to_string()),
-                }
+                ops::jog(self.client()?, axis, um).map_err(|e| e.to_string())?;
+                Ok(format!("jogging {axis:?} by {mm} mm"))
             }
             Order::Valve(inlet, secs, fallback) => {
                 if !(secs.is_finite() && secs > 0.0 && secs <= 10.0) {
