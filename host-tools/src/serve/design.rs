@@ -5,6 +5,7 @@
 
 use super::error::{ApiError, ApiResult};
 use crate::slicer::{self, SliceError, SliceOption, SliceRequest, Sliced};
+use dollop::command::MoveKind;
 use dollop::config::Config;
 use dollop::Command;
 use serde::{Deserialize, Serialize};
@@ -589,7 +590,7 @@ pub struct Polyline {
 /// Most points sent to the browser for one toolpath.
 const MAX_POINTS: usize = 400_000;
 
-/// The toolpath of a job's commands, walked as the preview picture walks it.
+/// The toolpath of a job's commands (`dollop::command::walk`'s moves and layers).
 pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolpath {
     let prints = commands
         .iter()
@@ -597,9 +598,6 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
         .count();
     let stride = prints.div_ceil(MAX_POINTS).max(1);
     let mm = |v: i32| (v as f64 * 1e-3 * 1000.0).round() / 1000.0;
-    let mut at = [start_um[0], start_um[1]];
-    let mut z = start_um[2];
-    let mut layer = 0usize;
     let mut paths: Vec<Polyline> = Vec::new();
     let mut ends = Vec::new();
     let mut starts = Vec::new();
@@ -607,28 +605,16 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut n = 0usize;
     let mut tail: Option<[f64; 2]> = None;
-    for (ci, c) in commands.iter().enumerate() {
-        let (to, m) = match *c {
-            Command::Print { dx, dy, material } => (
-                [at[0].saturating_add(dx), at[1].saturating_add(dy)],
-                material as i32,
-            ),
-            Command::Travel { x, y, z: tz } => {
-                if tz > z {
-                    layer += 1;
-                    z = tz;
-                }
-                ([x, y], -1)
-            }
-            Command::Layer { z: tz } => {
-                if tz > z {
-                    layer += 1;
-                    z = tz;
-                }
-                continue;
-            }
-            _ => continue,
+    let mut moves = dollop::command::walk(commands, start_um);
+    for mv in moves.by_ref() {
+        let m = match mv.kind {
+            MoveKind::Print { material } => material as i32,
+            MoveKind::Travel => -1,
+            // A layer change is drawn as nothing; its layer shows on what follows.
+            MoveKind::Layer => continue,
         };
+        let (ci, layer) = (mv.index, mv.layer as usize);
+        let (at, to) = ([mv.from[0], mv.from[1]], [mv.to[0], mv.to[1]]);
         n += 1;
         let same = paths.last().is_some_and(|p| p.l == layer && p.m == m);
         if !same {
@@ -659,8 +645,8 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
             lo[a] = lo[a].min(v);
             hi[a] = hi[a].max(v);
         }
-        at = to;
     }
+    let layer = moves.layer() as usize;
     if let (Some(p), Some(t)) = (paths.last_mut(), tail) {
         p.p.extend_from_slice(&t);
     }
