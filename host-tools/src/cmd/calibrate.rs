@@ -227,7 +227,7 @@ struct SyringeArgs {
 /// Runs `dollop calibrate`: the report goes out before any file is written, so a failed
 /// `--out` or `--plot` still leaves the numbers on screen.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let prepared = prepare(args)?;
+    let prepared = prepare(args).map_err(in_flags)?;
     print!("{}", prepared.text);
     let mut written = String::new();
     let result = finish(prepared, &mut written);
@@ -237,10 +237,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// Runs a calibration and returns what `run` prints: report, fragment and what was written.
 pub fn execute(args: Args) -> Result<String, CalError> {
-    let prepared = prepare(args)?;
+    let prepared = prepare(args).map_err(in_flags)?;
     let mut text = prepared.text.clone();
     finish(prepared, &mut text)?;
     Ok(text)
+}
+
+/// A library error that names an input, in this command's words: the flag that gave it.
+fn in_flags(e: CalError) -> CalError {
+    match e {
+        CalError::RoiTooSmall {
+            w,
+            h,
+            frame_w,
+            frame_h,
+            min,
+        } => CalError::arg(format!(
+            "--roi leaves {w}x{h} px of the {frame_w}x{frame_h} frames; at least {min}x{min} are needed"
+        )),
+        other => other,
+    }
 }
 
 /// A finished calibration, before its files are written.

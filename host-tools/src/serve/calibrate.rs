@@ -347,8 +347,9 @@ fn camera_refusal(kept: &Kept, e: CalError) -> ApiError {
         CalError::NotMeasurable { message, .. } => format!(
             "{message}: the frames should show the filament leaving the nozzle, moving down, in focus and lit; set the region of interest around it"
         ),
-        // The one argument the library checks against the frames themselves.
-        CalError::Argument(m) => m.replace("--roi", "the region of interest"),
+        // The one input the library checks against the frames themselves, named as the
+        // page's field is.
+        e @ CalError::RoiTooSmall { .. } => e.to_string(),
         other => kept.strip(other.to_string()),
     })
 }
@@ -549,7 +550,10 @@ mod tests {
         let mut f = ok.clone();
         f.roi = "155,0,100,100".into();
         let e = refused(&frames, &f, limits);
-        assert!(e.contains("the region of interest leaves 5x100 px"), "{e}");
+        assert!(
+            e.starts_with("the region of interest leaves 5x100 px") && !e.contains("--"),
+            "{e}"
+        );
 
         // A corrupt frame, a frame of another size, another kind of file, a name twice.
         let mut bad = bundled_frames();

@@ -19,6 +19,9 @@ use edges::{median, Roi};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// The least region of interest, px a side, the edge finder and the tracker work in.
+pub const MIN_ROI_PX: u32 = 8;
 use track::{LkOptions, Pyramid};
 
 /// Options of `calibrate camera`.
@@ -165,11 +168,14 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
         })
         .collect::<Result<Vec<_>, _>>()?;
     let roi = o.roi.unwrap_or(Roi::full(w, h)).clip(w, h);
-    if roi.w < 8 || roi.h < 8 {
-        return Err(CalError::arg(format!(
-            "--roi leaves {}x{} px of the {w}x{h} frames; at least 8x8 are needed",
-            roi.w, roi.h
-        )));
+    if roi.w < MIN_ROI_PX || roi.h < MIN_ROI_PX {
+        return Err(CalError::RoiTooSmall {
+            w: roi.w,
+            h: roi.h,
+            frame_w: w,
+            frame_h: h,
+            min: MIN_ROI_PX,
+        });
     }
     let sides: Vec<Vec<edges::Sides>> = imgs.iter().map(|f| edges::sides(f, roi)).collect();
     let width_px: Vec<Option<f64>> = sides
