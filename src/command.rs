@@ -4,6 +4,9 @@
 
 use serde::{Deserialize, Serialize};
 
+pub mod walk;
+pub use walk::{walk, Move, MoveKind};
+
 /// Coordinates in jobs are integer micrometres: exact, compact as varints, and far finer
 /// than the 0.05 mm the boundaries are held to.
 pub type Micrometres = i32;

@@ -5,7 +5,7 @@
 //! light, blur, noise; seeded, so the files change only when this does).
 //! Run: `cargo run -p dollop-host --example inspect_photo`.
 
-use dollop_host::inspect::register::Frame;
+use dollop_host::inspect::frame::Frame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design};
 use dollop_host::slicer::{job_file, markers};

@@ -3,7 +3,9 @@
 
 pub mod calibrate;
 pub mod cmd;
+pub mod fixtures;
 pub mod inspect;
 pub mod link;
 pub mod serve;
+pub mod simulate;
 pub mod slicer;

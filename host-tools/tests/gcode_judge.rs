@@ -7,7 +7,7 @@
 //! Each case prints its figures; `dollop bench --only gcode` runs the full-size designs.
 
 use dollop::config::Config;
-use dollop_host::cmd::bench::{chessboard_design, designs_dir};
+use dollop_host::fixtures::{chessboard_design, designs_dir};
 use dollop_host::slicer::gcode_dialect::{Dialect, Kind};
 use dollop_host::slicer::gcode_exec::{self, RunExport};
 use dollop_host::slicer::gcode_judge::{self, Setup, Verdict};

@@ -5,7 +5,7 @@
 //! error against the deposit's, and a print re-simulated after one `--suggest` correction.
 
 use dollop::config::Config;
-use dollop_host::inspect::register::Frame;
+use dollop_host::inspect::frame::Frame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design, measure, suggest};
 use dollop_sim::designs::{self, Fill, Job};

@@ -133,9 +133,7 @@ fn trace_heatmap_and_report() {
     assert!(img.width() > 100 && img.height() > 20);
     // Both materials' colours are on the plate.
     let has = |c: [u8; 3]| img.pixels().any(|p| p.0 == c);
-    assert!(
-        has(dollop_host::cmd::simulate::PALETTE[0]) && has(dollop_host::cmd::simulate::PALETTE[1])
-    );
+    assert!(has(dollop_host::simulate::PALETTE[0]) && has(dollop_host::simulate::PALETTE[1]));
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! without, with item transforms and another unit) slices to exactly the commands of the
 //! two STL files; broken or inconsistent 3MF files are refused with a reason.
 
-use dollop_host::cmd::bench::designs_dir;
+use dollop_host::fixtures::designs_dir;
 use dollop_host::slicer::mesh::{read_stl, Mesh as Body};
 use dollop_host::slicer::{self, SliceError, SliceOptions};
 use std::path::{Path, PathBuf};

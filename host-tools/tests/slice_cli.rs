@@ -2,7 +2,7 @@
 //! `--help` on each, the example config complete and valid.
 
 use dollop::config::Config;
-use dollop_host::cmd::config::EXAMPLE;
+use dollop_host::fixtures::EXAMPLE_CONFIG as EXAMPLE;
 use dollop_host::slicer::job_file::read_job;
 use std::path::Path;
 use std::process::Command;

@@ -5,7 +5,7 @@
 
 use dollop::config::Config;
 use dollop::Command;
-use dollop_host::cmd::bench::{bundled, designs_dir, example_config};
+use dollop_host::fixtures::{bundled, designs_dir, example_config};
 use dollop_host::slicer::job_file::{decode_job, read_job};
 use dollop_host::slicer::mesh::{shapes, write_stl};
 use dollop_host::slicer::{self, SliceOptions};

@@ -3,7 +3,7 @@
 //! the `G1`s at their feed rates): ours must land boundaries closer to the design and
 //! keep the bead section closer to S. Prints both sets of figures.
 
-use dollop_host::cmd::bench::chessboard_design;
+use dollop_host::fixtures::chessboard_design;
 use dollop_host::slicer::gcode::{self, Style};
 use dollop_host::slicer::gcode_sim::{self, Figures};
 use dollop_host::slicer::{self, PathOptions};

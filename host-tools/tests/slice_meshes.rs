@@ -2,7 +2,7 @@
 //! the shell, and layers stack with the Z step of the config.
 
 use dollop::Command;
-use dollop_host::cmd::bench::designs_dir;
+use dollop_host::fixtures::designs_dir;
 use dollop_host::slicer::mesh::read_stl;
 use dollop_host::slicer::{self, SliceOptions};
 use std::io::Write;

@@ -184,6 +184,22 @@ pub enum CalError {
     /// An option value is out of range, or options that belong together are missing.
     #[error("{0}")]
     Argument(String),
+    /// The region of interest, clipped to the frames, leaves too few pixels to measure.
+    /// The words name the input, not a flag: `dollop calibrate` says `--roi`, the
+    /// dashboard its field.
+    #[error("the region of interest leaves {w}x{h} px of the {frame_w}x{frame_h} frames; at least {min}x{min} are needed")]
+    RoiTooSmall {
+        /// Width left, px.
+        w: u32,
+        /// Height left, px.
+        h: u32,
+        /// Frame width, px.
+        frame_w: u32,
+        /// Frame height, px.
+        frame_h: u32,
+        /// The least width and height measured.
+        min: u32,
+    },
     /// The plot could not be drawn.
     #[error("{path}: cannot draw the plot: {message}")]
     Plot {

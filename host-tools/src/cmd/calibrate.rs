@@ -4,6 +4,7 @@
 
 use crate::calibrate::camera::edges::Roi;
 use crate::calibrate::camera::frames;
+use crate::calibrate::camera::{parse_roi, parse_window};
 use crate::calibrate::flow::RateUnit;
 use crate::calibrate::lag::{InletKind, TimeUnit};
 use crate::calibrate::output::{self, load_config, Outputs};
@@ -135,31 +136,6 @@ struct LagArgs {
     output: Output,
 }
 
-/// `X,Y,W,H` in whole pixels, as `--roi` takes it (the dashboard's field too).
-pub fn parse_roi(s: &str) -> Result<Roi, String> {
-    let v: Vec<u32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<u32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("{s:?}: expected X,Y,W,H in whole pixels"))?;
-    match v[..] {
-        [x, y, w, h] => Ok(Roi { x, y, w, h }),
-        _ => Err(format!("{s:?}: expected four numbers X,Y,W,H")),
-    }
-}
-
-/// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
-/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away). The
-/// dashboard's field is checked by this too.
-pub fn parse_window(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
-        _ => Err(format!(
-            "{s:?}: the window is an odd number of frames from 3 to 101"
-        )),
-    }
-}
-
 #[derive(clap::Args, Debug)]
 struct CameraArgs {
     /// Folder of frames (.png/.jpg/.bmp, in file-name order), filament moving down.
@@ -251,7 +227,7 @@ struct SyringeArgs {
 /// Runs `dollop calibrate`: the report goes out before any file is written, so a failed
 /// `--out` or `--plot` still leaves the numbers on screen.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let prepared = prepare(args)?;
+    let prepared = prepare(args).map_err(in_flags)?;
     print!("{}", prepared.text);
     let mut written = String::new();
     let result = finish(prepared, &mut written);
@@ -261,10 +237,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// Runs a calibration and returns what `run` prints: report, fragment and what was written.
 pub fn execute(args: Args) -> Result<String, CalError> {
-    let prepared = prepare(args)?;
+    let prepared = prepare(args).map_err(in_flags)?;
     let mut text = prepared.text.clone();
     finish(prepared, &mut text)?;
     Ok(text)
+}
+
+/// A library error that names an input, in this command's words: the flag that gave it.
+fn in_flags(e: CalError) -> CalError {
+    match e {
+        CalError::RoiTooSmall {
+            w,
+            h,
+            frame_w,
+            frame_h,
+            min,
+        } => CalError::arg(format!(
+            "--roi leaves {w}x{h} px of the {frame_w}x{frame_h} frames; at least {min}x{min} are needed"
+        )),
+        other => other,
+    }
 }
 
 /// A finished calibration, before its files are written.

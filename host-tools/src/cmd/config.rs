@@ -20,7 +20,7 @@ pub struct Args {
 }
 
 /// The example config `--example` prints. Parses and validates (tested).
-pub const EXAMPLE: &str = include_str!("example-config.toml");
+pub const EXAMPLE: &str = crate::fixtures::EXAMPLE_CONFIG;
 
 /// Runs `dollop config`.
 pub fn run(a: Args) -> anyhow::Result<()> {

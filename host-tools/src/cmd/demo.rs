@@ -3,7 +3,7 @@
 //! and pictures, simulates the print through the firmware's executor and the reference
 //! plant, and prints the report. Everything it needs is compiled into the binary.
 
-use super::simulate::{self, Heatmap};
+use crate::simulate::{self, Heatmap};
 use crate::slicer::{
     self, gcode_exec, image::ImageOptions, job_file, output, preview, SliceOptions,
 };

@@ -3,7 +3,7 @@
 //! and does its one thing through `link::Client`; `send` and `resume` then follow the
 //! print, and Ctrl-C pauses it safely.
 
-use crate::link::{Client, JobFile, LinkError, Options, Progress, SerialLink, Transport};
+use crate::link::{ops, Client, JobFile, Options, Progress, SerialLink, Transport};
 use anyhow::{bail, Context};
 use dollop::wire::{Halt, JobSlot, LinkLossPolicy, Mode, Request, Settings, Status, POLL_MS};
 use dollop::{Axis, Config, RunState};
@@ -475,15 +475,7 @@ pub fn resume(a: PortArgs) -> anyhow::Result<()> {
 /// `dollop abort`: stops now (valves closed, drivers off) and clears a halt.
 pub fn abort(a: PortArgs) -> anyhow::Result<()> {
     let mut c = connect(&a)?;
-    c.command(&Request::Abort)?;
-    c.sleep(Duration::from_millis(5));
-    let s = c.status()?;
-    if s.control.mode == Mode::Halted {
-        c.command(&Request::ClearFault)?;
-        eprintln!("halt cleared; home the machine before the next job");
-    } else {
-        eprintln!("aborted: valves closed, drivers off");
-    }
+    eprintln!("{}", ops::abort_and_clear(&mut c)?);
     Ok(())
 }
 
@@ -502,24 +494,13 @@ pub fn jog_on<T: Transport>(c: &mut Client<T>, a: &JogArgs) -> anyhow::Result<()
         let (Some(axis), Some(mm)) = (a.axis, a.mm) else {
             bail!("name an axis and a distance, e.g. `dollop jog x 10`, or use --home");
         };
-        if !mm.is_finite() || mm.abs() > 2000.0 {
-            bail!("jog distance {mm} mm is not a plausible move");
-        }
+        let um = ops::jog_um(mm)?;
         let axis = match axis {
             AxisArg::X => Axis::X,
             AxisArg::Y => Axis::Y,
             AxisArg::Z => Axis::Z,
         };
-        // Sent once: a jog repeated after a lost answer would move twice.
-        match c.call_once(&Request::Jog {
-            axis,
-            um: (mm * 1000.0).round() as i32,
-        }) {
-            Ok(dollop::wire::Reply::Ack) => {}
-            Ok(dollop::wire::Reply::Refused(r)) => return Err(LinkError::Refused(r).into()),
-            Ok(other) => bail!("unexpected answer {other:?}"),
-            Err(e) => return Err(e.into()),
-        }
+        ops::jog(c, axis, um)?;
     }
     let s = wait_idle(c, Duration::from_secs(300))?;
     let p = s.control.position_um;

@@ -2,12 +2,15 @@
 //! library and writes the job (.dlp), and on request G-code and a preview PNG; prints a
 //! short summary. All the work is the library's; this file maps options and prints.
 
-use crate::slicer::gcode::{self, Style};
-use crate::slicer::gcode_dialect::{Dialect, Kind};
+use crate::slicer::gcode;
+use crate::slicer::gcode_dialect::Kind;
 use crate::slicer::gcode_exec::{self, RunExport};
-use crate::slicer::image::{parse_colour, Classify, ImageOptions, Mirror, Rotation};
+use crate::slicer::image::{Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
-use crate::slicer::{self, output, Limits, PathOptions, SliceError, SliceOptions};
+use crate::slicer::{
+    self, output, GcodeRequest, GcodeStyle, Limits, SliceError, SliceOption, SliceRequest,
+};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop slice`.
@@ -39,8 +42,8 @@ pub struct Args {
     /// at its speeds, valves where it switched them, so dead time, pressure rise/decay and
     /// the speed law carry over), or the older feed-rate profiles `fine` (advance distance
     /// plus dead time) and `coarse` (the seed paper's), for comparison.
-    #[arg(long, value_name = "STYLE", default_value = "run", value_parser = ["run", "fine", "coarse"])]
-    pub gcode_style: String,
+    #[arg(long, value_name = "STYLE", default_value = "run", value_parser = style_parser())]
+    pub gcode_style: GcodeStyle,
     /// How `--gcode-style run` writes valve changes: `plain` (`M42 P<port> S0|1` between
     /// moves; the firmware must run M42 in its place in the move sequence), `reprap`
     /// (RepRapFirmware 3: `G1 ... P<bitmap>` mapped by `M670`, `M400` + `M42` while
@@ -50,8 +53,8 @@ pub struct Args {
     /// with LASER_SYNCHRONOUS_M106_M107 so fan changes are queued with the moves) or
     /// `marlin-m42` (`M400` then `M42 P<pin> S0|255`, for stock Marlin: the head stops at
     /// each valve change).
-    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = clap::builder::PossibleValuesParser::new(Kind::ALL.map(Kind::name)))]
-    pub gcode_dialect: String,
+    #[arg(long, value_name = "DIALECT", default_value = "plain", value_parser = dialect_parser())]
+    pub gcode_dialect: Kind,
     /// Port (plain, reprap), output_pin number (klipper), fan index 0-7 (marlin) or board
     /// pin (marlin-m42) of each inlet's valve, inlet 0 first [default: 0,1,..].
     #[arg(long, value_name = "P0,P1,..")]
@@ -145,124 +148,77 @@ pub struct Args {
     pub max_3mf_mb: u64,
 }
 
+/// `--gcode-style`: the words `GcodeStyle` knows, listed in the help.
+fn style_parser() -> impl TypedValueParser<Value = GcodeStyle> {
+    // The possible values have been checked before the map: the default is never taken.
+    PossibleValuesParser::new(GcodeStyle::ALL.map(GcodeStyle::name))
+        .map(|w| GcodeStyle::from_name(&w).unwrap_or_default())
+}
+
+/// `--gcode-dialect`: the words `Kind` knows, listed in the help.
+fn dialect_parser() -> impl TypedValueParser<Value = Kind> {
+    PossibleValuesParser::new(Kind::ALL.map(Kind::name))
+        .map(|w| Kind::from_name(&w).unwrap_or_default())
+}
+
 impl Args {
-    /// The slicer options these arguments ask for, checked (the dashboard reuses this).
-    pub fn options(&self) -> Result<SliceOptions, SliceError> {
-        let opt = |m: String| SliceError::Option(m);
-        let classify = match self.palette.as_deref() {
-            None => Classify::Threshold(self.threshold),
-            Some("auto") => Classify::AutoPalette,
-            Some(list) => Classify::Palette(
-                list.split(',')
-                    .map(parse_colour)
-                    .collect::<Result<Vec<_>, _>>()
-                    .map_err(|e| opt(format!("--palette: {e}")))?,
-            ),
-        };
-        let background = self
-            .background
-            .as_deref()
-            .map(parse_colour)
-            .transpose()
-            .map_err(|e| opt(format!("--background: {e}")))?;
-        if !(self.min_run_mm.is_finite() && self.min_run_mm >= 0.0) {
-            return Err(opt(format!(
-                "--min-run-mm {} must be 0 or more",
-                self.min_run_mm
-            )));
-        }
-        let origin = match self.origin.as_deref() {
-            None => None,
-            Some(o) => {
-                let v: Vec<f64> = o.split(',').filter_map(|t| t.trim().parse().ok()).collect();
-                match v[..] {
-                    [x, y] if x.is_finite() && y.is_finite() => Some([x, y]),
-                    _ => return Err(opt(format!("--origin {o:?} must be two numbers X,Y in mm"))),
-                }
-            }
-        };
-        if self.layers == Some(0) {
-            return Err(opt("--layers must be at least 1".into()));
-        }
-        if let Some(c) = self.connect_mm {
-            if !(c.is_finite() && c >= 0.0) {
-                return Err(opt(format!(
-                    "--connect-mm {c} must be a distance of 0 or more"
-                )));
-            }
-        }
-        if !(self.background_tolerance.is_finite() && self.background_tolerance >= 0.0) {
-            return Err(opt(format!(
-                "--background-tolerance {} must be a distance of 0 or more",
-                self.background_tolerance
-            )));
-        }
-        if let Some(p) = self.prime_mm {
-            if !p.is_finite() {
-                return Err(opt(format!("--prime-mm {p} must be a number of mm")));
-            }
-        }
-        Ok(SliceOptions {
-            image: ImageOptions {
-                width_mm: self.width_mm,
-                height_mm: self.height_mm,
-                rotate: self.rotate,
-                mirror: self.mirror,
-                invert: self.invert,
-                classify,
-                background,
-                background_tolerance: self.background_tolerance,
-                ..ImageOptions::default()
-            },
+    /// The slice these arguments ask for.
+    pub fn request(&self) -> SliceRequest {
+        SliceRequest {
+            width_mm: self.width_mm,
+            height_mm: self.height_mm,
             layers: self.layers,
-            path: PathOptions {
-                origin_mm: origin,
-                prime_mm: self.prime_mm,
-                connect_mm: self.connect_mm,
-            },
+            rotate: self.rotate,
+            mirror: self.mirror,
+            invert: self.invert,
+            threshold: self.threshold,
+            palette: self.palette.clone(),
+            background: self.background.clone(),
+            background_tolerance: self.background_tolerance,
+            origin: self.origin.clone(),
+            prime_mm: self.prime_mm,
             min_run_mm: self.min_run_mm,
-            progress: true,
+            connect_mm: self.connect_mm,
+            markers: self.markers,
+            calibration_pattern: self.calibration_pattern,
             limits: Limits {
                 max_pixels: self.max_pixels,
                 max_segments: self.max_segments,
                 max_triangles: self.max_triangles,
                 max_3mf_bytes: self.max_3mf_mb.saturating_mul(1 << 20),
             },
-        })
+            progress: true,
+            gcode: GcodeRequest {
+                style: self.gcode_style,
+                dialect: self.gcode_dialect,
+                ports: self.gcode_ports.clone(),
+                max_bytes: self.gcode_max_mb << 20,
+            },
+        }
     }
 }
 
-/// The G-code dialect and valve ports from `--gcode-dialect` and `--gcode-ports`.
-fn gcode_dialect(a: &Args, inlets: usize) -> Result<Dialect, SliceError> {
-    // clap has checked the word against `Kind::ALL`.
-    let kind = Kind::from_name(&a.gcode_dialect).unwrap_or_default();
-    let max = Dialect::max_port(kind);
-    let mut ports = Vec::new();
-    if let Some(list) = &a.gcode_ports {
-        let bad = || {
-            SliceError::Option(format!(
-                "--gcode-ports {list:?} must be up to {inlets} different port numbers (0 to {max}{}) separated by commas, inlet 0 first",
-                if kind == Kind::Marlin { ": Marlin's fans P0 to P7" } else { "" }
-            ))
-        };
-        for t in list.split(',') {
-            let p: u32 = t.trim().parse().map_err(|_| bad())?;
-            if p > max || ports.contains(&p) {
-                return Err(bad());
-            }
-            ports.push(p);
-        }
-        if ports.len() > inlets {
-            return Err(bad());
-        }
-        // Ports left to their defaults must not collide with the ones given.
-        for i in ports.len()..inlets {
-            if ports.contains(&(i as u32)) {
-                return Err(bad());
-            }
-        }
+/// The flag that sets a request's option.
+pub fn flag(o: SliceOption) -> &'static str {
+    match o {
+        SliceOption::Palette => "--palette",
+        SliceOption::Background => "--background",
+        SliceOption::BackgroundTolerance => "--background-tolerance",
+        SliceOption::MinRun => "--min-run-mm",
+        SliceOption::Origin => "--origin",
+        SliceOption::Layers => "--layers",
+        SliceOption::Connect => "--connect-mm",
+        SliceOption::Prime => "--prime-mm",
+        SliceOption::GcodePorts => "--gcode-ports",
     }
-    Ok(Dialect { kind, ports })
+}
+
+/// A slicer error as the command line says it: a refused option by its flag.
+fn flagged(e: SliceError) -> anyhow::Error {
+    match e {
+        SliceError::BadOption(o) => anyhow::anyhow!(o.message(flag(o.option))),
+        e => e.into(),
+    }
 }
 
 /// The default job path: the first design's stem with `.dlp`, in the current directory.
@@ -278,7 +234,8 @@ fn default_out(design: &Path) -> PathBuf {
 
 /// Runs `dollop slice`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let opts = a.options()?;
+    let req = a.request();
+    let opts = req.options().map_err(flagged)?;
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
     let (design, path) = if a.calibration_pattern {
@@ -308,13 +265,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .iter()
                 .map(|i| i.material.to_string())
                 .collect();
-            let style = match a.gcode_style.as_str() {
-                "coarse" => Style::Coarse { segments: 4 },
-                "fine" => Style::default(),
-                _ => {
+            let style = match req.gcode.style.profile() {
+                Some(style) => style,
+                None => {
                     let opt = RunExport {
-                        dialect: gcode_dialect(&a, config.inlets.len())?,
-                        max_bytes: a.gcode_max_mb << 20,
+                        dialect: req.gcode.dialect(config.inlets.len())?,
+                        max_bytes: req.gcode.max_bytes,
                         ..RunExport::default()
                     };
                     // The executor runs the whole job: minutes for a day-long print.
@@ -332,10 +288,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     return r;
                 }
             };
-            if a.gcode_dialect != "plain" || a.gcode_ports.is_some() {
+            if req.gcode.dialect != Kind::Plain || req.gcode.ports.is_some() {
                 return Err(SliceError::Option(format!(
                     "--gcode-dialect and --gcode-ports apply to --gcode-style run, not {}",
-                    a.gcode_style
+                    req.gcode.style.name()
                 )));
             }
             gcode::export(
@@ -347,7 +303,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 style,
             )
         })
-        .transpose()?;
+        .transpose()
+        .map_err(flagged)?;
     let out = a.out.clone().unwrap_or_else(|| match a.designs.first() {
         Some(d) => default_out(d),
         None => PathBuf::from("calibration.dlp"),

@@ -7,8 +7,8 @@
 //! print's outline is `register`'s.
 
 use super::design::{Marker, Plan};
+use super::frame::Frame;
 use super::photo::{Blob, Photo};
-use super::register::Frame;
 use imageproc::geometric_transformations::Projection;
 
 /// Frame pixel to design point, mm.

@@ -5,7 +5,7 @@
 
 use super::classify::PLATE;
 use super::design::{Bead, Plan};
-use super::register::Frame;
+use super::frame::Frame;
 
 /// Paints material `m` into `px` (frame pixels) where a bead of half-width `r_mm` covers
 /// it: the strip across the path from `a` to `b` (mm), or with `disk` the disk about `a`.

@@ -8,6 +8,7 @@
 pub mod classify;
 pub mod design;
 pub mod error;
+pub mod frame;
 pub mod markers;
 pub mod measure;
 pub mod photo;
@@ -21,7 +22,7 @@ pub use error::InspectError;
 use classify::PLATE;
 use design::Plan;
 use dollop::Command;
-use register::Frame;
+use frame::Frame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

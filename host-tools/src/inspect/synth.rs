@@ -5,7 +5,7 @@
 //! light, blur and noise. Tests and the README's worked example use it; `dollop inspect` itself does not.
 
 use super::classify::PLATE;
-use super::register::Frame;
+use super::frame::Frame;
 use dollop::config::{Config, Pressure};
 use dollop::rheology::Rheology;
 use dollop::RunState;

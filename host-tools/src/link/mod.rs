@@ -1,11 +1,13 @@
 //! The host end of the USB link: the protocol client (`client`), transports (a serial
 //! port found by USB VID/PID in `serial`, a simulated board with fault injection in
-//! `mem`), job files (`job`), and the link's throughput benchmark. The wire format
+//! `mem`), job files (`job`), the board operations both front ends run (`ops`), and the
+//! link's throughput benchmark. The wire format
 //! itself is `dollop::wire`, shared with the firmware.
 
 pub mod client;
 pub mod job;
 pub mod mem;
+pub mod ops;
 pub mod serial;
 pub mod transport;
 
@@ -13,7 +15,7 @@ pub use client::{Client, Options, Progress};
 pub use job::JobFile;
 pub use mem::{Faults, MemLink};
 pub use serial::SerialLink;
-pub use transport::{LinkError, Transport};
+pub use transport::{Cancelled, LinkError, Transport};
 
 use dollop::wire::{self, HostHeader, Request, MAX_CHUNK, MAX_FRAME};
 use dollop::Config;

@@ -49,9 +49,30 @@ pub enum LinkError {
     /// No board or several boards found.
     #[error("{0}")]
     Port(String),
+    /// The host gave up the operation because an Abort was asked for meanwhile.
+    #[error("{0} cancelled by Abort")]
+    Cancelled(Cancelled),
     /// Operating-system error on the port.
     #[error("serial port: {0}")]
     Io(#[from] std::io::Error),
+}
+
+/// What an Abort cut short.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cancelled {
+    /// An upload, between two frames.
+    Upload,
+    /// The wait for homing before a job.
+    Homing,
+}
+
+impl std::fmt::Display for Cancelled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Cancelled::Upload => "upload",
+            Cancelled::Homing => "homing",
+        })
+    }
 }
 
 impl LinkError {

@@ -7,11 +7,12 @@
 //! halt. Each board has its own job queue; a finished print waits for the plate to be
 //! cleared before the next starts.
 
+use super::jobs::JobEntry;
+use super::lock::lock;
 use super::simlink::SimLink;
-use super::state::{lock, JobEntry};
 use super::Args;
 use crate::link::{
-    mem_options, serial, Client, JobFile, LinkError, Options, SerialLink, Transport,
+    mem_options, ops, serial, Cancelled, Client, JobFile, LinkError, Options, SerialLink, Transport,
 };
 use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
 use dollop::{Axis, RunState};
@@ -51,16 +52,11 @@ pub struct Cancellable {
 impl Cancellable {
     fn check(&self) -> Result<(), LinkError> {
         if self.armed && self.cancel.load(Ordering::SeqCst) {
-            return Err(LinkError::Port(CANCELLED.into()));
+            return Err(LinkError::Cancelled(Cancelled::Upload));
         }
         Ok(())
     }
 }
-
-/// What a cancelled upload says.
-const CANCELLED: &str = "upload cancelled by Abort";
-/// What a send says when an Abort came while the board homed before the job.
-const HOMING_CANCELLED: &str = "homing cancelled by Abort";
 
 impl Transport for Cancellable {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
@@ -144,10 +140,12 @@ pub struct View {
     pub message: Option<String>,
     /// A halt, in plain words with what to do.
     pub fault: Option<String>,
-    /// Board mode (Idle, Job, Homing, Halted, ...).
-    pub mode: String,
-    /// Executor state (Printing, Paused, Done, ...).
-    pub run: String,
+    /// Board mode (Idle, Job, Homing, Halted, ...; "" to the page before the first status).
+    #[serde(serialize_with = "name_or_empty")]
+    pub mode: Option<Mode>,
+    /// Executor state (Printing, Paused, Done, ...; "" before the first status).
+    #[serde(serialize_with = "name_or_empty")]
+    pub run: Option<RunState>,
     /// Homed since the drivers were enabled.
     pub homed: bool,
     /// Valves open, bit per inlet.
@@ -192,6 +190,17 @@ pub struct View {
     pub pause_latency_ms: Option<[Option<f64>; 2]>,
     /// The pause point while a pause is in effect, mm.
     pub pause_point: Option<[f64; 3]>,
+}
+
+/// A state as the page reads it: the variant's name, or "" when none is known yet.
+fn name_or_empty<S: serde::Serializer, T: Serialize>(
+    v: &Option<T>,
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    match v {
+        Some(v) => v.serialize(s),
+        None => s.serialize_str(""),
+    }
 }
 
 /// An order for a board's worker, with where the answer goes.
@@ -506,8 +515,8 @@ impl Worker {
     fn show(&mut self, s: &Status) {
         let k = &s.control;
         let v = &mut self.view;
-        v.mode = format!("{:?}", k.mode);
-        v.run = format!("{:?}", k.run);
+        v.mode = Some(k.mode);
+        v.run = Some(k.run);
         v.homed = k.homed;
         v.valves = k.valves;
         v.position = k.position_um.map(|u| u as f64 / 1000.0);
@@ -597,7 +606,8 @@ impl Worker {
             Order::Send(e) => {
                 let name = e.figures.name.clone();
                 self.queue.push(e);
-                let busy = self.view.mode == "Job" || self.view.activity.starts_with("finished");
+                let busy =
+                    self.view.mode == Some(Mode::Job) || self.view.activity.starts_with("finished");
                 if busy || self.client.is_none() {
                     return Ok(format!("{name} queued ({} waiting)", self.queue.len()));
                 }
@@ -639,20 +649,15 @@ impl Worker {
                 self.cancel.store(false, Ordering::SeqCst);
                 let c = self.client()?;
                 let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
-                c.command(&Request::Abort).map_err(|e| e.to_string())?;
-                c.sleep(Duration::from_millis(5));
+                ops::abort(c).map_err(|e| e.to_string())?;
                 if let (Some(cur), true) = (self.current.as_mut(), printing) {
                     cur.aborted = true;
                 }
                 let Some(c) = self.client.as_mut() else {
                     return Err("the board is not connected".into());
                 };
-                let s = c.status().map_err(|e| e.to_string())?;
-                if s.control.mode == Mode::Halted {
-                    c.command(&Request::ClearFault).map_err(|e| e.to_string())?;
-                    return Ok("halt cleared; home the machine before the next job".into());
-                }
-                Ok("aborted: valves closed, drivers off".into())
+                let done = ops::clear_if_halted(c).map_err(|e| e.to_string())?;
+                Ok(done.to_string())
             }
             Order::Home(fallback) => {
                 self.ensure_config(fallback)?;
@@ -662,20 +667,10 @@ impl Worker {
                 Ok("homing".into())
             }
             Order::Jog(axis, mm, fallback) => {
-                if !mm.is_finite() || mm.abs() > 2000.0 {
-                    return Err(format!("jog distance {mm} mm is not a plausible move"));
-                }
+                let um = ops::jog_um(mm).map_err(|e| e.to_string())?;
                 self.ensure_config(fallback)?;
-                // Sent once: a jog repeated after a lost answer would move twice.
-                match self.client()?.call_once(&Request::Jog {
-                    axis,
-                    um: (mm * 1000.0).round() as i32,
-                }) {
-                    Ok(dollop::wire::Reply::Ack) => Ok(format!("jogging {axis:?} by {mm} mm")),
-                    Ok(dollop::wire::Reply::Refused(r)) => Err(LinkError::Refused(r).to_string()),
-                    Ok(other) => Err(format!("unexpected answer {other:?}")),
-                    Err(e) => Err(e.to_string()),
-                }
+                ops::jog(self.client()?, axis, um).map_err(|e| e.to_string())?;
+                Ok(format!("jogging {axis:?} by {mm} mm"))
             }
             Order::Valve(inlet, secs, fallback) => {
                 if !(secs.is_finite() && secs > 0.0 && secs <= 10.0) {
@@ -732,7 +727,7 @@ impl Worker {
         let Some(entry) = self.queue.first().cloned() else {
             return Err("no job is waiting for this board".into());
         };
-        if self.view.mode == "Job" {
+        if self.view.mode == Some(Mode::Job) {
             return Err("the board is printing; wait for the print to end or abort it".into());
         }
         let r = self.upload_and_start(&entry);
@@ -742,7 +737,8 @@ impl Worker {
                 self.queue.retain(|e| e.id != entry.id);
                 Ok(m)
             }
-            Err(LinkError::Port(m)) if m == CANCELLED || m == HOMING_CANCELLED => {
+            Err(LinkError::Cancelled(what)) => {
+                let m = LinkError::Cancelled(what);
                 self.queue.retain(|e| e.id != entry.id);
                 self.view.activity = "idle".into();
                 Err(format!(
@@ -819,7 +815,7 @@ impl Worker {
                 // real machine (7.5 s of wall time on the emulated board), so it is
                 // looked at here and ends the wait (the worker then aborts the board).
                 if self.cancel.load(Ordering::SeqCst) {
-                    return Err(LinkError::Port(HOMING_CANCELLED.into()));
+                    return Err(LinkError::Cancelled(Cancelled::Homing));
                 }
                 let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
                 let s = c.status()?;
@@ -885,6 +881,17 @@ impl Worker {
 mod tests {
     use super::*;
     use crate::serve::design;
+
+    #[test]
+    fn the_page_reads_mode_and_run_by_name_and_empty_before_a_status() {
+        let mut v = View::default();
+        let j = serde_json::to_value(&v).expect("serializes");
+        assert_eq!((&j["mode"], &j["run"]), (&"".into(), &"".into()));
+        v.mode = Some(Mode::Job);
+        v.run = Some(RunState::Pausing);
+        let j = serde_json::to_value(&v).expect("serializes");
+        assert_eq!((&j["mode"], &j["run"]), (&"Job".into(), &"Pausing".into()));
+    }
 
     fn chessboard() -> Arc<JobEntry> {
         let checked = design::check(design::BUNDLED[0].1).expect("config");
@@ -1107,17 +1114,17 @@ mod tests {
         assert!(jog.is_err(), "{jog:?}");
         w.handle(Order::Home(cfg())).expect("homes");
         w.tick();
-        tick_until(&mut w, "homing", |v| v.homed && v.mode == "Idle");
+        tick_until(&mut w, "homing", |v| v.homed && v.mode == Some(Mode::Idle));
         let x0 = w.view.position[0];
         let jog = w.handle(Order::Jog(Axis::X, 5.0, None)).expect("jogs");
         assert!(jog.contains("jogging"), "{jog}");
         w.tick();
         tick_until(&mut w, "the jog", |v| {
-            v.mode == "Idle" && (v.position[0] - x0 - 5.0).abs() < 0.01
+            v.mode == Some(Mode::Idle) && (v.position[0] - x0 - 5.0).abs() < 0.01
         });
         w.handle(Order::Valve(1, 0.5, None)).expect("opens");
         w.tick();
-        assert_eq!(w.view.valves, 2, "{}", w.view.mode);
+        assert_eq!(w.view.valves, 2, "{:?}", w.view.mode);
         // The plant's line fills and its flow follows; then the valve closes by itself.
         tick_until(&mut w, "flow", |v| v.flow > 0.1 && v.line_kpa[1] > 1.0);
         tick_until(&mut w, "the valve closing", |v| v.valves == 0);
@@ -1147,7 +1154,7 @@ mod tests {
                 loop {
                     view.changed().await.expect("worker runs");
                     let v = view.borrow().clone();
-                    if v.activity == "homing" && v.mode == "Homing" {
+                    if v.activity == "homing" && v.mode == Some(Mode::Homing) {
                         return (v.seq, v.position);
                     }
                     assert_ne!(v.activity, "printing", "homing was never shown: {v:?}");
@@ -1175,8 +1182,8 @@ mod tests {
             tokio::time::sleep(Duration::from_millis(300)).await;
             let v = board.view.borrow().clone();
             assert!(v.queue.is_empty(), "{:?}", v.queue);
-            assert_ne!(v.mode, "Homing");
-            assert_ne!(v.mode, "Job");
+            assert_ne!(v.mode, Some(Mode::Homing));
+            assert_ne!(v.mode, Some(Mode::Job));
             assert!(v.connected, "{:?}", v.message);
         });
     }
@@ -1236,7 +1243,7 @@ mod tests {
                         }
                     }
                     assert!(
-                        v.upload.is_some() || v.activity == "uploading" || v.mode != "Job",
+                        v.upload.is_some() || v.activity == "uploading" || v.mode != Some(Mode::Job),
                         "the upload ended unseen: {v:?}"
                     );
                 }
@@ -1256,7 +1263,7 @@ mod tests {
             let v = board.view.borrow().clone();
             assert_eq!(v.upload, None);
             assert!(v.queue.is_empty(), "{:?}", v.queue);
-            assert_ne!(v.mode, "Job");
+            assert_ne!(v.mode, Some(Mode::Job));
             assert!(v.connected, "{:?}", v.message);
         });
     }

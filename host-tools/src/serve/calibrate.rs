@@ -252,14 +252,14 @@ impl CameraForm {
         o.target_width_mm = positive("target width", &self.target_width, "0.8 (mm)")?;
         o.nozzle_mm = positive("nozzle diameter", &self.nozzle, "0.8 (mm)")?;
         if !self.roi.trim().is_empty() {
-            o.roi = Some(crate::cmd::calibrate::parse_roi(&self.roi).map_err(|e| {
+            o.roi = Some(camera::parse_roi(&self.roi).map_err(|e| {
                 ApiError::bad(format!(
                     "region of interest {e}, or leave it empty for the whole frame"
                 ))
             })?);
         }
         if !self.window.trim().is_empty() {
-            o.window = crate::cmd::calibrate::parse_window(&self.window)
+            o.window = camera::parse_window(&self.window)
                 .map_err(|e| ApiError::bad(format!("smoothing window {e}")))?;
         }
         o.config = config;
@@ -347,8 +347,9 @@ fn camera_refusal(kept: &Kept, e: CalError) -> ApiError {
         CalError::NotMeasurable { message, .. } => format!(
             "{message}: the frames should show the filament leaving the nozzle, moving down, in focus and lit; set the region of interest around it"
         ),
-        // The one argument the library checks against the frames themselves.
-        CalError::Argument(m) => m.replace("--roi", "the region of interest"),
+        // The one input the library checks against the frames themselves, named as the
+        // page's field is.
+        e @ CalError::RoiTooSmall { .. } => e.to_string(),
         other => kept.strip(other.to_string()),
     })
 }
@@ -549,7 +550,10 @@ mod tests {
         let mut f = ok.clone();
         f.roi = "155,0,100,100".into();
         let e = refused(&frames, &f, limits);
-        assert!(e.contains("the region of interest leaves 5x100 px"), "{e}");
+        assert!(
+            e.starts_with("the region of interest leaves 5x100 px") && !e.contains("--"),
+            "{e}"
+        );
 
         // A corrupt frame, a frame of another size, another kind of file, a name twice.
         let mut bad = bundled_frames();

@@ -4,8 +4,8 @@
 //! designs with the CLI's options into a job and its toolpath for the browser to draw.
 
 use super::error::{ApiError, ApiResult};
-use crate::cmd::slice::Args as SliceArgs;
-use crate::slicer::{self, SliceError, Sliced};
+use crate::slicer::{self, SliceError, SliceOption, SliceRequest, Sliced};
+use dollop::command::MoveKind;
 use dollop::config::Config;
 use dollop::Command;
 use serde::{Deserialize, Serialize};
@@ -333,7 +333,8 @@ pub fn check(text: &str) -> ApiResult<Checked> {
     })
 }
 
-/// The slicing options of the page, as the CLI's flags (strings as typed; empty = unset).
+/// The slicing options of the page, by the names its form sends (`opt-width_mm`, ...;
+/// strings as typed, empty = unset). The comments give the matching `dollop slice` flag.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(default)]
 pub struct SliceForm {
@@ -379,52 +380,82 @@ fn nonempty(s: &Option<String>) -> Option<String> {
 }
 
 impl SliceForm {
-    /// The CLI's arguments for these options (so the CLI's checks apply as they are).
-    pub fn to_args(&self) -> ApiResult<SliceArgs> {
-        use clap::ValueEnum;
-        let rotate = match nonempty(&self.rotate) {
-            None => Default::default(),
-            Some(r) => ValueEnum::from_str(&r, true)
-                .map_err(|_| ApiError::bad(format!("rotate {r:?}: choose 0, 90, 180 or 270")))?,
+    /// The slice these options ask for (the command line's defaults where a field is
+    /// empty; no G-code is written from the page).
+    pub fn request(&self) -> ApiResult<SliceRequest> {
+        use crate::slicer::image::{Mirror, Rotation};
+        let rotate = match nonempty(&self.rotate).as_deref() {
+            None | Some("0") => Rotation::default(),
+            Some("90") => Rotation::R90,
+            Some("180") => Rotation::R180,
+            Some("270") => Rotation::R270,
+            Some(r) => {
+                return Err(ApiError::bad(format!(
+                    "rotate {r:?}: choose 0, 90, 180 or 270"
+                )))
+            }
         };
-        let mirror = match nonempty(&self.mirror) {
-            None => crate::slicer::image::Mirror::None,
-            Some(m) => ValueEnum::from_str(&m, true)
-                .map_err(|_| ApiError::bad(format!("mirror {m:?}: choose none, x or y")))?,
+        let mirror = match nonempty(&self.mirror)
+            .map(|m| m.to_ascii_lowercase())
+            .as_deref()
+        {
+            None | Some("none") => Mirror::None,
+            Some("x") => Mirror::X,
+            Some("y") => Mirror::Y,
+            Some(_) => {
+                let m = nonempty(&self.mirror).unwrap_or_default();
+                return Err(ApiError::bad(format!("mirror {m:?}: choose none, x or y")));
+            }
         };
-        let d = slicer::Limits::default();
-        Ok(SliceArgs {
-            designs: Vec::new(),
-            config: PathBuf::new(),
-            out: None,
-            gcode: None,
-            gcode_style: "run".into(),
-            gcode_dialect: "plain".into(),
-            gcode_ports: None,
-            gcode_max_mb: 1024,
-            preview: None,
-            preview_layer: None,
-            layers: self.layers,
+        let d = SliceRequest::default();
+        Ok(SliceRequest {
             width_mm: self.width_mm,
             height_mm: self.height_mm,
+            layers: self.layers,
             rotate,
             mirror,
             invert: self.invert,
-            threshold: self.threshold.unwrap_or(150),
+            threshold: self.threshold.unwrap_or(d.threshold),
             palette: nonempty(&self.palette),
             background: nonempty(&self.background),
-            background_tolerance: self.background_tolerance.unwrap_or(40.0),
+            background_tolerance: self.background_tolerance.unwrap_or(d.background_tolerance),
             origin: nonempty(&self.origin),
             prime_mm: self.prime_mm,
-            min_run_mm: self.min_run_mm.unwrap_or(0.1),
+            min_run_mm: self.min_run_mm.unwrap_or(d.min_run_mm),
             connect_mm: self.connect_mm,
-            max_pixels: d.max_pixels,
-            max_segments: d.max_segments,
-            max_triangles: d.max_triangles,
-            max_3mf_mb: d.max_3mf_bytes >> 20,
             markers: self.markers,
             calibration_pattern: self.calibration_pattern,
+            progress: false,
+            ..d
         })
+    }
+}
+
+/// The page's name for a request's option: its field's label (`index.html`, `opt-...`).
+pub fn field_name(o: SliceOption) -> &'static str {
+    match o {
+        SliceOption::Palette => "Palette",
+        SliceOption::Background => "Background",
+        SliceOption::BackgroundTolerance => "Background tolerance",
+        SliceOption::MinRun => "Shortest run, mm",
+        SliceOption::Origin => "Origin X,Y mm",
+        SliceOption::Layers => "Layers",
+        SliceOption::Connect => "Join rows within, mm",
+        SliceOption::Prime => "Priming bead, mm",
+        // The page writes no G-code.
+        SliceOption::GcodePorts => "G-code ports",
+    }
+}
+
+/// A slicer error as the page says it: a refused option by its field's label.
+pub fn slice_error(e: SliceError) -> ApiError {
+    match e {
+        // `Label: value problem`: the label ends in a unit, so the colon comes first.
+        SliceError::BadOption(o) => ApiError::bad(match &o.value {
+            Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
+            None => format!("{}: {}", field_name(o.option), o.problem),
+        }),
+        e => ApiError::bad(e.to_string()),
     }
 }
 
@@ -473,9 +504,8 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
             "choose a design: an image, one STL per material, or a 3MF",
         ));
     }
-    let args = form.to_args()?;
-    let mut opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
-    opts.progress = false;
+    let req = form.request()?;
+    let opts = req.options().map_err(slice_error)?;
     let dir = tempfile::tempdir()
         .map_err(|e| ApiError::internal(format!("cannot create a temporary folder: {e}")))?;
     let mut paths = Vec::new();
@@ -494,9 +524,13 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     // The slicer names the files in its messages: the user's names, not our folder's.
     let ours = format!("{}/", dir.path().display());
-    let strip = |e: slicer::SliceError| ApiError::bad(e.to_string().replace(&ours, ""));
+    let strip = |e: slicer::SliceError| {
+        let mut e = slice_error(e);
+        e.error = e.error.replace(&ours, "");
+        e
+    };
     let mut sliced = slicer::slice_files(&paths, config, &opts).map_err(strip)?;
-    if args.markers {
+    if req.markers {
         let machine = slicer::validate(Path::new("config"), config).map_err(strip)?;
         sliced = slicer::with_markers(sliced, config, &machine).map_err(strip)?;
     }
@@ -507,9 +541,8 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
 /// The calibration pattern of `dollop slice --calibration-pattern` for this config (every
 /// pair of its materials, switches at several distances), with markers.
 fn calibration_pattern(config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
-    let args = form.to_args()?;
-    let opts = args.options().map_err(|e| ApiError::bad(e.to_string()))?;
-    let bad = |e: slicer::SliceError| ApiError::bad(e.to_string());
+    let opts = form.request()?.options().map_err(slice_error)?;
+    let bad = slice_error;
     let machine = slicer::validate(Path::new("config"), config).map_err(bad)?;
     let design = slicer::calibration::pattern(
         machine.inlet_count(),
@@ -557,7 +590,7 @@ pub struct Polyline {
 /// Most points sent to the browser for one toolpath.
 const MAX_POINTS: usize = 400_000;
 
-/// The toolpath of a job's commands, walked as the preview picture walks it.
+/// The toolpath of a job's commands (`dollop::command::walk`'s moves and layers).
 pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolpath {
     let prints = commands
         .iter()
@@ -565,9 +598,6 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
         .count();
     let stride = prints.div_ceil(MAX_POINTS).max(1);
     let mm = |v: i32| (v as f64 * 1e-3 * 1000.0).round() / 1000.0;
-    let mut at = [start_um[0], start_um[1]];
-    let mut z = start_um[2];
-    let mut layer = 0usize;
     let mut paths: Vec<Polyline> = Vec::new();
     let mut ends = Vec::new();
     let mut starts = Vec::new();
@@ -575,28 +605,16 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut n = 0usize;
     let mut tail: Option<[f64; 2]> = None;
-    for (ci, c) in commands.iter().enumerate() {
-        let (to, m) = match *c {
-            Command::Print { dx, dy, material } => (
-                [at[0].saturating_add(dx), at[1].saturating_add(dy)],
-                material as i32,
-            ),
-            Command::Travel { x, y, z: tz } => {
-                if tz > z {
-                    layer += 1;
-                    z = tz;
-                }
-                ([x, y], -1)
-            }
-            Command::Layer { z: tz } => {
-                if tz > z {
-                    layer += 1;
-                    z = tz;
-                }
-                continue;
-            }
-            _ => continue,
+    let mut moves = dollop::command::walk(commands, start_um);
+    for mv in moves.by_ref() {
+        let m = match mv.kind {
+            MoveKind::Print { material } => material as i32,
+            MoveKind::Travel => -1,
+            // A layer change is drawn as nothing; its layer shows on what follows.
+            MoveKind::Layer => continue,
         };
+        let (ci, layer) = (mv.index, mv.layer as usize);
+        let (at, to) = ([mv.from[0], mv.from[1]], [mv.to[0], mv.to[1]]);
         n += 1;
         let same = paths.last().is_some_and(|p| p.l == layer && p.m == m);
         if !same {
@@ -627,8 +645,8 @@ pub fn toolpath(commands: &[Command], start_um: [i32; 3], bead_mm: f64) -> Toolp
             lo[a] = lo[a].min(v);
             hi[a] = hi[a].max(v);
         }
-        at = to;
     }
+    let layer = moves.layer() as usize;
     if let (Some(p), Some(t)) = (paths.last_mut(), tail) {
         p.p.extend_from_slice(&t);
     }
@@ -925,6 +943,43 @@ mod tests {
         let p = slice(&[], &c.config, &form).expect("the pattern slices without a design");
         assert_eq!(p.name, "calibration pattern");
         assert!(figures(&p, &c.config).switches >= 2);
+    }
+
+    #[test]
+    fn a_refused_option_names_the_pages_field_not_a_flag() {
+        let c = check(seed()).expect("config");
+        let uploads = [Upload {
+            name: "chessboard.png".into(),
+            bytes: DESIGNS[1].1.to_vec(),
+        }];
+        let cases = [
+            (
+                SliceForm {
+                    min_run_mm: Some(-1.0),
+                    ..Default::default()
+                },
+                "Shortest run, mm: -1 must be 0 or more",
+            ),
+            (
+                SliceForm {
+                    origin: Some("1;2".into()),
+                    ..Default::default()
+                },
+                "Origin X,Y mm: \"1;2\" must be two numbers X,Y in mm",
+            ),
+            (
+                SliceForm {
+                    palette: Some("#zz".into()),
+                    ..Default::default()
+                },
+                "Palette: ",
+            ),
+        ];
+        for (form, want) in cases {
+            let e = slice(&uploads, &c.config, &form).expect_err("refused");
+            assert!(e.error.starts_with(want), "{}", e.error);
+            assert!(!e.error.contains("--"), "{}", e.error);
+        }
     }
 
     #[test]

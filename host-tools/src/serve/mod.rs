@@ -10,6 +10,8 @@ pub mod boards;
 pub mod calibrate;
 pub mod design;
 pub mod error;
+pub mod jobs;
+pub mod lock;
 pub mod routes;
 pub mod simlink;
 pub mod simulate;

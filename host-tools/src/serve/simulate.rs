@@ -4,7 +4,7 @@
 //! heatmap, the CSV trace, and time series (head speed, flow, line pressures, valves)
 //! thinned to a size a browser plots at once.
 
-use crate::cmd::simulate::{report_text, Heatmap};
+use crate::simulate::{report_text, Heatmap};
 use dollop::config::Config;
 use dollop::RunState;
 use dollop_sim::{Job, RunOptions};

@@ -3,7 +3,9 @@
 //! which browser tabs are open (for the one-tab-commands-a-board rule).
 
 use super::boards::{self, Board};
-use super::design::{self, Figures, Toolpath, Upload};
+use super::design::{self, Upload};
+pub use super::jobs::JobEntry;
+pub use super::lock::lock;
 use super::simulate::SimRun;
 use super::Args;
 use crate::slicer::Sliced;
@@ -11,26 +13,10 @@ use anyhow::Context;
 use dollop::config::Config;
 use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 
 /// Jobs (and simulations) kept; older ones are dropped from memory.
 pub const KEEP: usize = 32;
-
-/// A sliced job.
-pub struct JobEntry {
-    /// Its number.
-    pub id: u64,
-    /// The machine config it was sliced for.
-    pub config: Config,
-    /// That config as TOML.
-    pub config_text: String,
-    /// The job.
-    pub sliced: Sliced,
-    /// The toolpath the pages draw.
-    pub toolpath: Toolpath,
-    /// Its figures.
-    pub figures: Figures,
-}
 
 /// A config offered on the pages.
 pub struct ConfigChoice {
@@ -56,11 +42,6 @@ pub struct AppState {
     /// `--config`, checked: what home, jog and valve tests load on a board without a
     /// config when the page names none.
     pub cli_config: Option<Config>,
-}
-
-/// Locks, going on with the data if another thread panicked while holding it.
-pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl AppState {

@@ -1,6 +1,7 @@
 //! `SliceError`: every way slicing, reading or writing a design, config, job, G-code or
 //! preview can fail, each with a one-line message naming the file and the problem. Which
-//! module raises which variant is theirs; this file only names and words them.
+//! module raises which variant is theirs; this file only names and words them (and a
+//! refused request option, `OptionError`, by a `SliceOption` the front ends word).
 
 use std::path::{Path, PathBuf};
 
@@ -188,6 +189,10 @@ pub enum SliceError {
     /// An option value that cannot work (named in the message).
     #[error("{0}")]
     Option(String),
+    /// A value of a `SliceRequest` that cannot work, naming the option as a `SliceOption`
+    /// (front ends word it: a flag, a field).
+    #[error("{0}")]
+    BadOption(OptionError),
 }
 
 impl SliceError {
@@ -203,5 +208,81 @@ impl SliceError {
                 source,
             }
         }
+    }
+}
+
+/// An option of a slice request, as the library names it; front ends map it to their own
+/// words (`cmd::slice`: the flag, `serve::design`: the form's field).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SliceOption {
+    /// The colours that pick materials (`auto` or a list).
+    Palette,
+    /// The colour not printed.
+    Background,
+    /// How near a pixel must be to the background colour to count as it.
+    BackgroundTolerance,
+    /// Shortest material run kept, mm.
+    MinRun,
+    /// The design's lower-left corner on the plate, mm.
+    Origin,
+    /// Layers to stack or print.
+    Layers,
+    /// Rows joined within this distance, mm.
+    Connect,
+    /// Priming bead length, mm.
+    Prime,
+    /// The valves' ports in the G-code.
+    GcodePorts,
+}
+
+impl SliceOption {
+    /// Plain words for the option, for a message with no front end to name it.
+    pub fn words(self) -> &'static str {
+        match self {
+            SliceOption::Palette => "palette",
+            SliceOption::Background => "background colour",
+            SliceOption::BackgroundTolerance => "background tolerance",
+            SliceOption::MinRun => "shortest run (mm)",
+            SliceOption::Origin => "origin",
+            SliceOption::Layers => "layers",
+            SliceOption::Connect => "row joining distance (mm)",
+            SliceOption::Prime => "priming bead (mm)",
+            SliceOption::GcodePorts => "G-code valve ports",
+        }
+    }
+}
+
+/// A value of a `SliceRequest` that cannot work.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OptionError {
+    /// Which option.
+    pub option: SliceOption,
+    /// The value as given, when the problem is about it as a whole (`-1`, `"1,x"`).
+    pub value: Option<String>,
+    /// What is wrong and what would do: reads after the option's name (and value).
+    pub problem: String,
+}
+
+impl OptionError {
+    pub(super) fn new(option: SliceOption, value: Option<String>, problem: String) -> Self {
+        OptionError {
+            option,
+            value,
+            problem,
+        }
+    }
+
+    /// The message, with the option called `name`: `NAME VALUE PROBLEM` or `NAME: PROBLEM`.
+    pub fn message(&self, name: &str) -> String {
+        match &self.value {
+            Some(v) => format!("{name} {v} {}", self.problem),
+            None => format!("{name}: {}", self.problem),
+        }
+    }
+}
+
+impl std::fmt::Display for OptionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message(self.option.words()))
     }
 }

@@ -1,4 +1,4 @@
-//! The words of each G-code dialect for a sampled executor run (`gcode_exec::Step`s):
+//! The words of each G-code dialect for a sampled executor run (`gcode_step::Step`s):
 //! `plain` (`G0`/`G1`/`M42`/`G4`, what any firmware accepts), `reprap` (RepRapFirmware's
 //! `G1 ... P<bitmap>` with the ports mapped by `M670`), `klipper` (`SET_PIN`, which
 //! Klipper schedules with the moves), `marlin` (`M106`/`M107` on fan outputs, which Marlin
@@ -8,7 +8,7 @@
 //! before.
 
 use super::gcode::{num, GcodeStats};
-use super::gcode_exec::Step;
+use super::gcode_step::Step;
 use dollop::config::Config;
 use std::fmt::Write as _;
 

@@ -11,6 +11,7 @@ use super::error::SliceError;
 use super::gcode::{self, GcodeStats};
 use super::gcode_dialect::{self, Dialect};
 use super::gcode_ramps;
+pub use super::gcode_step::Step;
 use dollop::config::Config;
 use dollop::{Command, Real, RunState};
 use dollop_sim::{Job, RunOptions};
@@ -39,25 +40,6 @@ impl Default for Sampling {
             min_move_mm: 0.02,
         }
     }
-}
-
-/// One step of the sampled run, before it is written in a dialect.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Step {
-    /// Straight move to `to` (mm) at `v` mm/s; `travel` with every valve closed between
-    /// beads (written as `G0`).
-    Move {
-        /// Target, mm.
-        to: [f64; 3],
-        /// Feed, mm/s.
-        v: f64,
-        /// A travel move.
-        travel: bool,
-    },
-    /// The valves take this mask (bit i: inlet i open).
-    Valves(u32),
-    /// The head stands this long, s.
-    Dwell(f64),
 }
 
 /// Where the head is in the sampler's view.

@@ -1,4 +1,4 @@
-//! Fits a sampled executor run (`gcode_exec::Step`s) to a firmware's acceleration limit
+//! Fits a sampled executor run (`gcode_step::Step`s) to a firmware's acceleration limit
 //! where the executor changes speed at once (a valve whose flow starts, stops or changes
 //! at once, as ideal valves do): speed jumps inside a bead are re-centred so that the
 //! firmware's ramp is half before and half after the change, and beads that start or end
@@ -6,7 +6,7 @@
 //! gradually (real valves), nothing changes. Stops at reshaping moves: writing them is
 //! `gcode_dialect`'s.
 
-use super::gcode_exec::Step;
+use super::gcode_step::Step;
 
 /// Shortest speed ramp worth re-centring, mm.
 const JUMP_MIN_MM: f64 = 0.004;

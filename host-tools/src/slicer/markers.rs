@@ -5,6 +5,7 @@
 //! is unchanged and `inspect` recognises them by their shape ([`recognise`]). Finding them
 //! in a photo is `inspect`'s business.
 
+use super::toolpath::um;
 use dollop::Command;
 
 /// One marker: a bead from `ends[0]` to `corner` to `ends[1]`, legs at a right angle.
@@ -80,10 +81,6 @@ impl std::fmt::Display for MarkerError {
             ),
         }
     }
-}
-
-fn um(mm: f64) -> i32 {
-    (mm * 1000.0).round() as i32
 }
 
 /// `commands` (starting at `start_um`, ending with `End`) with the four markers printed

@@ -14,17 +14,20 @@ pub mod gcode_exec;
 pub mod gcode_judge;
 pub mod gcode_ramps;
 pub mod gcode_sim;
+pub mod gcode_step;
 pub mod image;
 pub mod job_file;
 pub mod markers;
 pub mod mesh;
 pub mod output;
 pub mod preview;
+pub mod request;
 pub mod threemf;
 pub mod toolpath;
 pub mod voxel;
 
-pub use error::SliceError;
+pub use error::{OptionError, SliceError, SliceOption};
+pub use request::{GcodeRequest, GcodeStyle, SliceRequest};
 pub use toolpath::{PathOptions, PathStats};
 
 use dollop::config::Config;

@@ -63,7 +63,9 @@ pub fn transit_mm(machine: &Machine<f64, 4>) -> f64 {
     machine.v_transit().mm3::<f64>() / machine.bead_area
 }
 
-fn um(mm: f64) -> i32 {
+/// Millimetres to the jobs' integer micrometres, rounded to the nearest: the slicer's one
+/// conversion (the toolpath emitter and the markers use it).
+pub fn um(mm: f64) -> i32 {
     (mm * 1000.0).round() as i32
 }
 

@@ -19,6 +19,9 @@ use edges::{median, Roi};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// The least region of interest, px a side, the edge finder and the tracker work in.
+pub const MIN_ROI_PX: u32 = 8;
 use track::{LkOptions, Pyramid};
 
 /// Options of `calibrate camera`.
@@ -94,6 +97,31 @@ pub struct Calibration {
     pub verdicts: Vec<String>,
 }
 
+/// `X,Y,W,H` in whole pixels, as the command line and the dashboard take a region of interest.
+pub fn parse_roi(s: &str) -> Result<Roi, String> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected X,Y,W,H in whole pixels"))?;
+    match v[..] {
+        [x, y, w, h] => Ok(Roi { x, y, w, h }),
+        _ => Err(format!("{s:?}: expected four numbers X,Y,W,H")),
+    }
+}
+
+/// The smoothing window: an odd number of frames from 3 (a window of 1 or 0 would not
+/// smooth, an even one has no centre) to 101 (wider smooths the lag's rise away). Both front ends
+/// check theirs with this.
+pub fn parse_window(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(w) if (3..=101).contains(&w) && !w.is_multiple_of(2) => Ok(w),
+        _ => Err(format!(
+            "{s:?}: the window is an odd number of frames from 3 to 101"
+        )),
+    }
+}
+
 fn positive(name: &str, v: f64) -> Result<f64, CalError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
@@ -140,11 +168,14 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
         })
         .collect::<Result<Vec<_>, _>>()?;
     let roi = o.roi.unwrap_or(Roi::full(w, h)).clip(w, h);
-    if roi.w < 8 || roi.h < 8 {
-        return Err(CalError::arg(format!(
-            "--roi leaves {}x{} px of the {w}x{h} frames; at least 8x8 are needed",
-            roi.w, roi.h
-        )));
+    if roi.w < MIN_ROI_PX || roi.h < MIN_ROI_PX {
+        return Err(CalError::RoiTooSmall {
+            w: roi.w,
+            h: roi.h,
+            frame_w: w,
+            frame_h: h,
+            min: MIN_ROI_PX,
+        });
     }
     let sides: Vec<Vec<edges::Sides>> = imgs.iter().map(|f| edges::sides(f, roi)).collect();
     let width_px: Vec<Option<f64>> = sides

@@ -1,0 +1,159 @@
+//! The plate as a picture: the material deposited in each cell and every material
+//! boundary as a dot coloured by its error. Painting only: the run that feeds it is
+//! `simulate`'s, the staging of files `slicer::output`'s.
+
+use crate::slicer::{self, output};
+use dollop::config::Config;
+use dollop_sim::metrics::Boundary;
+use dollop_sim::Job;
+use std::path::Path;
+
+/// Material colours on the plate, by inlet: the same as the toolpath preview's.
+pub const PALETTE: [[u8; 3]; 8] = slicer::preview::MATERIAL_COLOURS;
+
+/// The plate as a picture: deposited material per cell, boundary errors as coloured dots.
+pub struct Heatmap {
+    x0: f64,
+    y1: f64,
+    px_per_mm: f64,
+    img: image::RgbImage,
+    radius: i64,
+    last: Option<(i64, i64, u8)>,
+}
+
+/// Largest heatmap side, pixels.
+const MAX_SIDE: f64 = 4000.0;
+
+impl Heatmap {
+    /// A blank plate covering the job's extent with a margin.
+    pub fn for_job(job: &Job, config: &Config) -> Self {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        let mut p = [job.start_um[0] as f64 * 1e-3, job.start_um[1] as f64 * 1e-3];
+        let mut grow = |p: [f64; 2]| {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        };
+        grow(p);
+        for c in &job.commands {
+            match *c {
+                dollop::Command::Print { dx, dy, .. } => {
+                    p[0] += dx as f64 * 1e-3;
+                    p[1] += dy as f64 * 1e-3;
+                }
+                dollop::Command::Travel { x, y, .. } => p = [x as f64 * 1e-3, y as f64 * 1e-3],
+                _ => {}
+            }
+            grow(p);
+        }
+        let margin = 2.0;
+        let (w_mm, h_mm) = (hi[0] - lo[0] + 2.0 * margin, hi[1] - lo[1] + 2.0 * margin);
+        let px_per_mm = (20.0f64).min(MAX_SIDE / w_mm.max(h_mm).max(1.0));
+        let w = (w_mm * px_per_mm).ceil().max(1.0) as u32;
+        let h = (h_mm * px_per_mm).ceil().max(1.0) as u32;
+        let pitch = config.channel.line_pitch_mm as f64;
+        Heatmap {
+            x0: lo[0] - margin,
+            y1: hi[1] + margin,
+            px_per_mm,
+            img: image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255])),
+            radius: ((pitch * 0.5 * px_per_mm).round() as i64).max(1),
+            last: None,
+        }
+    }
+
+    fn to_px(&self, x: f64, y: f64) -> (i64, i64) {
+        (
+            ((x - self.x0) * self.px_per_mm).round() as i64,
+            ((self.y1 - y) * self.px_per_mm).round() as i64,
+        )
+    }
+
+    fn disk(&mut self, cx: i64, cy: i64, r: i64, colour: [u8; 3]) {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if dx * dx + dy * dy > r * r {
+                    continue;
+                }
+                let (x, y) = (cx + dx, cy + dy);
+                if x >= 0
+                    && y >= 0
+                    && (x as u32) < self.img.width()
+                    && (y as u32) < self.img.height()
+                {
+                    self.img.put_pixel(x as u32, y as u32, image::Rgb(colour));
+                }
+            }
+        }
+    }
+
+    /// Paint bead of `material` where the head stands.
+    pub fn paint(&mut self, x: f64, y: f64, material: u8) {
+        let (px, py) = self.to_px(x, y);
+        if self.last == Some((px, py, material)) {
+            return;
+        }
+        self.last = Some((px, py, material));
+        let colour = PALETTE[material as usize % PALETTE.len()];
+        self.disk(px, py, self.radius, colour);
+    }
+
+    /// Dots for every boundary, coloured by its error along the path.
+    pub fn mark_boundaries(&mut self, boundaries: &[Boundary]) {
+        let r = (self.radius / 2).max(2);
+        for b in boundaries {
+            let (px, py) = self.to_px(b.point[0], b.point[1]);
+            self.disk(px, py, r + 1, [0, 0, 0]);
+            self.disk(px, py, r, error_colour(b.error().abs()));
+        }
+        // Legend: the error scale from 0 (left) to 0.05 mm (right) along the top edge.
+        let w = (self.img.width() / 3).max(10);
+        for x in 0..w.min(self.img.width()) {
+            let c = error_colour(0.05 * x as f64 / w as f64);
+            for y in 0..6.min(self.img.height()) {
+                self.img.put_pixel(x, y, image::Rgb(c));
+            }
+        }
+    }
+
+    /// Writes the PNG atomically.
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let mut staged = output::Outputs::new();
+        self.stage(&mut staged, path)?;
+        output::commit(staged)?;
+        Ok(())
+    }
+
+    /// Stages the PNG in `staged` (renamed into place when it is committed).
+    pub fn stage(&self, staged: &mut output::Outputs, path: &Path) -> anyhow::Result<()> {
+        use image::ImageEncoder;
+        output::stage(staged, path, |w| {
+            image::codecs::png::PngEncoder::new(w)
+                .write_image(
+                    self.img.as_raw(),
+                    self.img.width(),
+                    self.img.height(),
+                    image::ExtendedColorType::Rgb8,
+                )
+                .map_err(std::io::Error::other)
+        })?;
+        Ok(())
+    }
+
+    /// The picture.
+    pub fn image(&self) -> &image::RgbImage {
+        &self.img
+    }
+}
+
+/// Green at 0, yellow at 0.025 mm, red at 0.05 mm and beyond.
+fn error_colour(e: f64) -> [u8; 3] {
+    let f = (e / 0.05).clamp(0.0, 1.0);
+    if f < 0.5 {
+        [(510.0 * f) as u8, 190, 40]
+    } else {
+        [255, (190.0 * (1.0 - f) * 2.0) as u8, 40]
+    }
+}
