@@ -37,6 +37,30 @@ pub struct Args {
     pub max_pixels: u64,
 }
 
+/// A library error that names an input, in this command's words: the flag that gave it.
+fn in_flags(e: InspectError) -> anyhow::Error {
+    match e {
+        InspectError::Resolution { px_per_mm, min, max } => {
+            anyhow::anyhow!("--px-per-mm {px_per_mm} must be from {min} to {max}")
+        }
+        InspectError::FrameTooLarge { w, h } => {
+            anyhow::anyhow!("the design frame would be {w} x {h} px; lower --px-per-mm")
+        }
+        InspectError::TooLarge {
+            path,
+            w,
+            h,
+            px,
+            limit,
+            over,
+        } => anyhow::anyhow!(
+            "{}: {w} x {h} = {px} pixels, over the limit of {limit} by {over} (--max-pixels); scale the photo down or raise the limit",
+            path.display()
+        ),
+        e => e.into(),
+    }
+}
+
 /// Runs `dollop inspect`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let config = slicer::load_config(&a.config)?;
@@ -50,7 +74,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let ins = inspect::inspect(&a.photo, &commands, header.start_um, &config, &opts).map_err(
         |e| match e {
             InspectError::Job { message, .. } => anyhow::anyhow!("{}: {message}", a.job.display()),
-            e => e.into(),
+            e => in_flags(e),
         },
     )?;
     if ins.plan.layers > 1 {

@@ -22,8 +22,8 @@ pub enum InspectError {
         /// What the decoder said.
         message: String,
     },
-    /// The photo is larger than the limit.
-    #[error("{path}: {w} x {h} = {px} pixels, over the limit of {limit} by {over} (--max-pixels); scale the photo down or raise the limit")]
+    /// The photo is larger than the limit (`Options::max_pixels`).
+    #[error("{path}: {w} x {h} = {px} pixels, over the limit of {limit} by {over}; scale the photo down or raise the limit")]
     TooLarge {
         /// The file.
         path: PathBuf,
@@ -57,6 +57,24 @@ pub enum InspectError {
     /// An option is out of range.
     #[error("{0}")]
     Argument(String),
+    /// The resolution asked for (`Options::px_per_mm`) is outside what is measured.
+    #[error("a resolution of {px_per_mm} px per mm: it must be from {min} to {max}")]
+    Resolution {
+        /// What was asked, px per mm.
+        px_per_mm: f64,
+        /// The least, px per mm.
+        min: f64,
+        /// The most, px per mm.
+        max: f64,
+    },
+    /// The design, drawn at the resolution asked for, would be too large a picture.
+    #[error("the design frame would be {w} x {h} px; lower the resolution (px per mm)")]
+    FrameTooLarge {
+        /// Width, px.
+        w: u32,
+        /// Height, px.
+        h: u32,
+    },
     /// Writing an output failed.
     #[error("{path}: cannot write: {source}")]
     Write {

@@ -351,6 +351,10 @@ pub fn inspect(
     inspect_photo(path, photo, commands, start_um, config, o)
 }
 
+/// The resolutions, px per mm, the rectified picture is drawn at: below 2 a bead is a
+/// pixel or two, above 200 a print's frame outgrows memory.
+pub const PX_PER_MM: std::ops::RangeInclusive<f64> = 2.0..=200.0;
+
 /// `inspect` on a photo already loaded.
 pub fn inspect_photo(
     path: &Path,
@@ -361,11 +365,12 @@ pub fn inspect_photo(
     o: &Options,
 ) -> Result<Inspection, InspectError> {
     let (pitch, corner_radius) = geometry(config);
-    if !(o.px_per_mm.is_finite() && (2.0..=200.0).contains(&o.px_per_mm)) {
-        return Err(InspectError::Argument(format!(
-            "--px-per-mm {} must be from 2 to 200",
-            o.px_per_mm
-        )));
+    if !(o.px_per_mm.is_finite() && PX_PER_MM.contains(&o.px_per_mm)) {
+        return Err(InspectError::Resolution {
+            px_per_mm: o.px_per_mm,
+            min: *PX_PER_MM.start(),
+            max: *PX_PER_MM.end(),
+        });
     }
     let bad = |message: String| InspectError::Photo {
         path: path.to_path_buf(),
@@ -387,9 +392,7 @@ pub fn inspect_photo(
     };
     let (fw, fh) = frame.size();
     if u64::from(fw) * u64::from(fh) > 100_000_000 {
-        return Err(InspectError::Argument(format!(
-            "the design frame would be {fw} x {fh} px; lower --px-per-mm"
-        )));
+        return Err(InspectError::FrameTooLarge { w: fw, h: fh });
     }
     let by_markers = if o.use_markers {
         markers::register(&photo, &plan, &frame)
