@@ -163,17 +163,7 @@ fn assert_paused(name: &str, cfg: &Config, r: &RunResult, planned: usize) -> Tal
         t.worst_rest_after_shut_s = t.worst_rest_after_shut_s.max(after);
         t.farthest_mm = t.farthest_mm.max(p.distance_mm());
         t.mid_bead += 1;
-        assert!(p.seam_measured, "{what}: seam not measured");
-        assert!(
-            p.seam_gap_mm <= 0.1,
-            "{what}: seam gap {:.3} mm",
-            p.seam_gap_mm
-        );
-        assert!(
-            p.seam_section.1 <= 1.3,
-            "{what}: seam section {:.3} S",
-            p.seam_section.1
-        );
+        assert_seam(&what, p);
         t.worst_gap_mm = t.worst_gap_mm.max(p.seam_gap_mm);
         t.section = (
             t.section.0.min(p.seam_section.0),
