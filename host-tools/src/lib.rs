@@ -3,6 +3,8 @@
 
 pub mod calibrate;
 pub mod cmd;
+pub mod config_apply;
+pub mod figure;
 pub mod fixtures;
 pub mod inspect;
 pub mod link;

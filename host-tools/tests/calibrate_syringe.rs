@@ -75,7 +75,7 @@ fn line_width_matches_its_cross_section() {
     assert!(rel(line.width_mm, (4.0 * 0.48 / PI).sqrt()) < 1e-6);
     assert!(
         cal.report()
-            .contains("steps/s of the 40000 the core allows"),
+            .contains("steps/s of the 40000 the core allows (max_step_rate_hz 50000 less one step per control cycle at rate_hz 10000)"),
         "{}",
         cal.report()
     );

@@ -238,6 +238,7 @@ fn check(name: &str, truth: Truth, seed: u64) {
     // rows, which the outline and the along-path offsets cannot).
     pattern_error_within_half_a_point(name, &ins, &p);
     let s = suggest::suggest(&ins, &exec, &job());
+    fragment_applies(name, &s);
     assert!(
         s.lines
             .iter()
@@ -605,6 +606,43 @@ fn calibration_job() -> Job {
     }
 }
 
+/// The suggestion's fragment is valid TOML that `dollop config --apply` turns the config
+/// into the suggested one (to the fragment's printed precision).
+fn fragment_applies(name: &str, s: &suggest::Suggestion) {
+    let Some(fragment) = &s.fragment else {
+        return;
+    };
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/seed-paper-valves.toml");
+    let text = std::fs::read_to_string(p).unwrap();
+    let a = dollop_host::config_apply::apply(&text, fragment, &[])
+        .unwrap_or_else(|e| panic!("{name}: {e}\n{fragment}"));
+    assert!(!a.changes.is_empty(), "{name}: {fragment}");
+    let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * y.abs().max(1.0);
+    let (got, want) = (&a.config, &s.config);
+    assert!(
+        close(
+            got.channel.channel_length_mm,
+            want.channel.channel_length_mm
+        ),
+        "{name}: {fragment}"
+    );
+    for (g, w) in got.inlets.iter().zip(&want.inlets) {
+        assert!(
+            close(g.valve_open_delay_ms, w.valve_open_delay_ms),
+            "{name}: {fragment}"
+        );
+        assert!(
+            close(g.valve_close_delay_ms, w.valve_close_delay_ms),
+            "{name}: {fragment}"
+        );
+        assert_eq!(
+            std::mem::discriminant(&g.rheology),
+            std::mem::discriminant(&w.rheology),
+            "{name}: {fragment}"
+        );
+    }
+}
+
 /// A photo of the calibration pattern printed on a machine off by `truth`: `--suggest`
 /// must name the parameter (`want`, as its report line begins), recover its value
 /// within `tol` of `value`, and the re-simulated print's boundaries lie within 0.1 mm.
@@ -628,6 +666,7 @@ fn calibrate(name: &str, truth: Truth, seed: u64, want: &str, value: f64, tol: f
     assert_eq!(ins.registration, inspect::Registration::Markers, "{name}");
     let errs = offset_errors(&ins, &p.plant);
     let s = suggest::suggest(&ins, &exec, &job);
+    fragment_applies(name, &s);
     let after = resimulated_p95(&s.config, &truth, &job);
     let best = &s.fits[0];
     parts(name, &ins, &p);
@@ -955,4 +994,58 @@ fn three_materials_are_told_apart_and_measured() {
 #[test]
 fn four_materials_are_told_apart_and_measured() {
     many_materials(4, 22);
+}
+
+/// A print made with the right config needs no correction: `inspect --suggest --out` says
+/// so and succeeds (exit 0) without writing a fragment, so scripts read the good outcome
+/// as one.
+#[test]
+fn a_print_that_needs_no_correction_is_a_success_on_the_command_line() {
+    use dollop_host::slicer::job_file;
+    let dir = tempfile::tempdir().unwrap();
+    let job = marked(job());
+    let exec = config();
+    let cam = Camera {
+        seed: 21,
+        ..Default::default()
+    };
+    let p = print(
+        dir.path(),
+        "exact.png",
+        &exec,
+        &Truth::default(),
+        &cam,
+        &job,
+    );
+    let body = job_file::encode_body(&job.commands);
+    let header = job_file::header_for(
+        &job.commands,
+        &body,
+        job.start_um,
+        job.initial_material,
+        &exec,
+    );
+    let job_path = dir.path().join("exact.dlp");
+    job_file::write_job(&job_path, &header, &body).unwrap();
+    let fragment = dir.path().join("fix.toml");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .arg("inspect")
+        .arg(&p.photo)
+        .arg("--job")
+        .arg(&job_path)
+        .arg("--config")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/seed-paper-valves.toml"))
+        .args(["--suggest", "--out"])
+        .arg(&fragment)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("no correction needed"), "{text}");
+    assert!(!fragment.exists(), "{text}");
+    assert!(!text.contains("wrote"), "{text}");
 }

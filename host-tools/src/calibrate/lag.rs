@@ -478,7 +478,7 @@ impl Calibration {
                 valve_ok(&self.valve).ok()?;
                 let _ = write!(
                     s,
-                    "# Paste into the [[inlet]] of this valve (dead time + first-order rise closest to the curve).\n\
+                    "# Dead time + first-order rise closest to the curve. Apply to this valve's inlet:\n# dollop config --apply THIS.toml MACHINE.toml --inlet N\n\
                      valve_open_delay_ms = {}\npressure_rise_ms = {}\n",
                     toml_float(self.valve.dead_s * 1e3, 4),
                     toml_float(self.valve.rise_s * 1e3, 4)
@@ -490,7 +490,7 @@ impl Calibration {
                     Some(spm) => {
                         let _ = write!(
                             s,
-                            "# Paste into the [[inlet]] of this syringe.\n\
+                            "# Apply to this syringe's inlet: dollop config --apply THIS.toml MACHINE.toml --inlet N\n\
                              syringe = {{ steps_per_mm3 = {}, lag_k = {}, lag_n = {} }}\n",
                             toml_float(spm, 6),
                             toml_float(w.k, 5),

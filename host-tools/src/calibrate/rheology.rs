@@ -119,6 +119,9 @@ pub struct ModelFit {
     pub fit: Fit,
     /// The core's rheology for it, or why the core cannot take it.
     pub rheology: Result<Rheology, String>,
+    /// Where the fit sits on a physical bound: the yield stress (or plateau) the data
+    /// wanted, below zero, before it was held at zero.
+    pub bounded: Option<f64>,
 }
 
 /// Options of `calibrate rheology`.
@@ -199,6 +202,41 @@ fn starts(which: Which, x: &[f64], y: &[f64]) -> Vec<Vec<f64>> {
                 .collect()
         }
     }
+}
+
+/// Herschel-Bulkley with the yield stress held at 0 (the bound `free` crossed): K and n
+/// refitted as a power law, the yield stress reported as 0 with the interval cut at 0,
+/// and AICc still counting three parameters (the model's, not the bound's).
+fn yield_at_zero(kind: Kind, free: &Fit, x: &[f64], y: &[f64], options: Options) -> Option<Fit> {
+    let pl = starts(Which::PowerLaw, x, y)
+        .into_iter()
+        .filter_map(|start| {
+            fit::fit(
+                &Which::PowerLaw.model(kind, &start),
+                x,
+                y,
+                Space::Log,
+                options.fit,
+            )
+            .ok()
+        })
+        .min_by(|a, b| a.rss.total_cmp(&b.rss))?;
+    let v = pl.values();
+    let tau = &free.estimates[0];
+    let mut estimates = vec![fit::Estimate {
+        name: tau.name,
+        unit: tau.unit,
+        value: 0.0,
+        lo: 0.0,
+        hi: tau.hi.max(0.0),
+    }];
+    estimates.extend(pl.estimates.iter().cloned());
+    Some(Fit {
+        model: Which::HerschelBulkley.model(kind, &[0.0, v[0], v[1]]),
+        estimates,
+        aicc: fit::aicc(pl.points, 3, pl.rss),
+        ..pl
+    })
 }
 
 fn to_core(which: Which, f: &Fit) -> Result<Rheology, String> {
@@ -311,11 +349,21 @@ pub fn calibrate_table(table: &Table, options: Options) -> Result<Calibration, C
                 Err(e) => last_err = e.0,
             }
         }
+        let (best, bounded) = match best {
+            Some(f) if which == Which::HerschelBulkley && f.values()[0] < 0.0 => {
+                // A yield stress cannot be negative: hold it at its bound, 0, where the
+                // curve is the power law, and say what the data wanted.
+                let wanted = f.values()[0];
+                (yield_at_zero(kind, &f, &x, &y, options), Some(wanted))
+            }
+            other => (other, None),
+        };
         match best {
             Some(f) => fits.push(ModelFit {
                 which,
                 rheology: to_core(which, &f),
                 fit: f,
+                bounded,
             }),
             None => skipped.push(format!("{}: did not converge: {last_err}", which.name())),
         }
@@ -392,7 +440,12 @@ fn verdicts(cal: &Calibration) -> Vec<String> {
                 } else {
                     "plateau modulus"
                 };
-                if e.excludes(0.0) && e.value > 0.0 {
+                if let Some(wanted) = m.bounded {
+                    out.push(format!(
+                        "Herschel-Bulkley's {what} held at 0: the data want {} Pa, below the physical bound, i.e. no {what}; the fit with it at 0 is the power law",
+                        sig(wanted, 3)
+                    ));
+                } else if e.excludes(0.0) && e.value > 0.0 {
                     out.push(format!(
                         "Herschel-Bulkley's {what} is significant: {}",
                         estimate(e)
@@ -519,7 +572,7 @@ impl Calibration {
         let chosen = &self.fits[self.chosen?];
         let mut s = format!(
             "# dollop calibrate rheology {}: {}, {}, R^2 {:.4}\n\
-             # Paste into the [[inlet]] of this material.\n",
+             # Apply to the inlet of this material: dollop config --apply THIS.toml MACHINE.toml --inlet N\n",
             self.path.display(),
             chosen.which.name(),
             log_rms(chosen.fit.rms),

@@ -232,18 +232,23 @@ pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
             )
         });
     }
-    if let Some((need, max)) = config_rate {
+    if let (Some((need, max)), Some(cfg)) = (config_rate, o.config.as_ref()) {
+        // Both figures the user can find in the config, beside the one the core derives.
+        let why = format!(
+            "max_step_rate_hz {} less one step per control cycle at rate_hz {}",
+            sig(cfg.motion.max_step_rate_hz as f64, 6),
+            cfg.control.rate_hz
+        );
         verdicts.push(if need <= max {
             format!(
-                "the config's bead at its print speed needs {} steps/s of the {} the core allows",
+                "the config's bead at its print speed needs {} steps/s of the {} the core allows ({why})",
                 sig(need, 4),
                 sig(max, 4)
             )
         } else {
             format!(
                 "the config's bead at its print speed needs {} steps/s, above the {} the core \
-                 allows (max_step_rate_hz less one step per control cycle): fewer microsteps or \
-                 a coarser lead",
+                 allows ({why}): fewer microsteps or a coarser lead",
                 sig(need, 4),
                 sig(max, 4)
             )
@@ -318,7 +323,7 @@ impl Calibration {
     pub fn fragment(&self) -> String {
         format!(
             "# dollop calibrate syringe: {} steps/mm^3, {} lag\n\
-             # Paste into the [[inlet]] this syringe feeds.\n\
+             # Apply to the inlet this syringe feeds: dollop config --apply THIS.toml MACHINE.toml --inlet N\n\
              syringe = {{ steps_per_mm3 = {}, lag_k = {}, lag_n = {} }}\n",
             sig(self.steps_per_mm3, 5),
             if self.lag_measured {

@@ -1,22 +1,40 @@
-//! `dollop config`: prints the commented example machine config (`--example`) or checks a
-//! config file and prints what the core derives from it (`--check`). The config types and
-//! their validation are the core's.
+//! `dollop config`: prints the commented example machine config (`--example`), checks a
+//! config file and prints what the core derives from it (`--check`), or applies a fragment
+//! that `calibrate` or `inspect` wrote (`--apply`). The config types and their validation
+//! are the core's; applying a fragment is `config_apply`'s.
 
+use crate::config_apply::{self, InletRef};
 use crate::slicer;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `dollop config`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  dollop config --example > machine.toml\n  dollop config --check machine.toml"
+    after_help = "Example:\n  dollop config --example > machine.toml\n  dollop config --check machine.toml\n  dollop config --apply rheology.toml machine.toml --inlet 1"
 )]
 pub struct Args {
     /// Print a complete, commented example config (every key explained) to stdout.
     #[arg(long, conflicts_with = "check")]
     pub example: bool,
     /// Validate a config file and print the derived machine constants.
-    #[arg(long, value_name = "MACHINE.toml")]
+    #[arg(long, value_name = "MACHINE.toml", conflicts_with = "apply")]
     pub check: Option<PathBuf>,
+    /// Apply a fragment written by `calibrate` or `inspect --suggest` to MACHINE.toml (in
+    /// place unless --out), keeping its comments; prints each change and checks the result.
+    #[arg(long, value_name = "FRAGMENT.toml", requires = "machine")]
+    pub apply: Option<PathBuf>,
+    /// The machine config `--apply` changes.
+    #[arg(value_name = "MACHINE.toml")]
+    pub machine: Option<PathBuf>,
+    /// The inlet(s) a fragment's bare keys go to (rheology, lag, syringe fragments): index
+    /// from 0 or material name, comma-separated for several (a syringe goes to every inlet).
+    /// With a fragment's `[[inlet]]` tables (flow), one per table in order; without, they
+    /// are matched by material.
+    #[arg(long, value_name = "N|MATERIAL", requires = "apply")]
+    pub inlet: Option<String>,
+    /// Write the changed config here instead of over MACHINE.toml.
+    #[arg(long, value_name = "NEW.toml", requires = "apply")]
+    pub out: Option<PathBuf>,
 }
 
 /// The example config `--example` prints. Parses and validates (tested).
@@ -28,8 +46,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         print!("{EXAMPLE}");
         return Ok(());
     }
+    if let (Some(fragment), Some(machine)) = (&a.apply, &a.machine) {
+        let inlets = a
+            .inlet
+            .as_deref()
+            .map(InletRef::parse_list)
+            .unwrap_or_default();
+        return apply(fragment, machine, &inlets, a.out.as_deref());
+    }
     let Some(path) = a.check else {
-        anyhow::bail!("give --example (print an example config) or --check MACHINE.toml");
+        anyhow::bail!(
+            "give --example (print an example config), --check MACHINE.toml, or --apply FRAGMENT.toml MACHINE.toml"
+        );
     };
     let config = slicer::load_config(&path)?;
     let m = slicer::validate(&path, &config)?;
@@ -102,5 +130,47 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             inlet.supply_pa / 1e3
         );
     }
+    Ok(())
+}
+
+/// `--apply`: reads both files (size-checked before reading), applies, validates as `--check`
+/// does, then writes atomically; on any error nothing is written.
+fn apply(
+    fragment: &Path,
+    machine: &Path,
+    inlets: &[InletRef],
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    let read = |p: &Path| -> anyhow::Result<String> {
+        let bytes = std::fs::metadata(p)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?
+            .len();
+        if bytes > config_apply::MAX_TEXT_BYTES as u64 {
+            anyhow::bail!(
+                "{}: {bytes} bytes; a config or fragment is at most {} bytes: is this the right file?",
+                p.display(),
+                config_apply::MAX_TEXT_BYTES
+            );
+        }
+        std::fs::read_to_string(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))
+    };
+    let applied =
+        config_apply::apply(&read(machine)?, &read(fragment)?, inlets).map_err(|e| match e {
+            config_apply::ApplyError::NeedInlet { .. } => {
+                anyhow::anyhow!(
+                    "{}: {e}: add --inlet N (or --inlet MATERIAL)",
+                    fragment.display()
+                )
+            }
+            _ => anyhow::anyhow!("{}: {e}", fragment.display()),
+        })?;
+    let dest = out.unwrap_or(machine);
+    slicer::validate(dest, &applied.config)?;
+    println!("{} applied to {}:", fragment.display(), machine.display());
+    for c in &applied.changes {
+        println!("  {c}");
+    }
+    slicer::output::write_bytes(dest, applied.text.as_bytes())?;
+    println!("wrote {} (valid)", dest.display());
     Ok(())
 }

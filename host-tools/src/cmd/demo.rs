@@ -103,18 +103,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         sliced.header.start_um,
         sliced.header.initial_material,
         &names,
-        &gcode_exec::RunExport::default(),
+        &gcode_exec::RunExport {
+            host: crate::slicer::gcode_dialect::HostText {
+                progress: true,
+                ..Default::default()
+            },
+            ..gcode_exec::RunExport::default()
+        },
     )?;
     let gcode_path = dir.join(format!("{name}.gcode"));
     let preview_path = dir.join(format!("{name}-toolpath.png"));
-    let preview_img = preview::draw(
+    let preview_img = preview::figure(
         &sliced.commands,
         sliced.header.start_um,
         &preview::PreviewOptions {
             bead_mm: config.channel.line_pitch_mm as f64,
             ..Default::default()
         },
-    );
+        &names,
+    )?;
     println!(
         "sliced {} for {}: {} print segments, {:.1} x {:.1} mm, job {} bytes ({:.1} B/segment; G-code {:.0} B/segment)",
         files

@@ -91,6 +91,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .collect();
     print!("{}", ins.report(&names));
     let mut staged = output::Outputs::new();
+    let mut written_out = a.out.is_some();
     if a.suggest {
         let job = dollop_sim::Job {
             start_um: header.start_um,
@@ -107,8 +108,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 println!("\nfragment:\n{f}");
                 output::stage(&mut staged, path, |w| w.write_all(f.as_bytes()))?;
             }
+            // A print that needs no correction is the good outcome: say so, exit 0.
+            (Some(path), None) if !s.fits.is_empty() && s.rms_now <= suggest::DEADBAND_MM => {
+                println!(
+                    "no correction needed: the config already puts the boundaries where the photo shows them; {} not written",
+                    path.display()
+                );
+                written_out = false;
+            }
             (Some(path), None) => anyhow::bail!(
-                "--out {}: nothing to write: no parameter needs correcting",
+                "--out {}: nothing to write: no single parameter explains the offsets (see the suggestions above)",
                 path.display()
             ),
             (None, Some(f)) => println!("\nfragment:\n{f}"),
@@ -116,10 +125,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     if let Some(path) = &a.picture {
-        slicer::preview::stage_png(&mut staged, path, &inspect::picture::draw(&ins))?;
+        let img = inspect::picture::figure(&ins)
+            .map_err(|e| anyhow::anyhow!("{}: cannot draw the picture: {e}", path.display()))?;
+        slicer::preview::stage_png(&mut staged, path, &img)?;
     }
     output::commit(staged).context("writing the outputs")?;
-    for p in [&a.picture, &a.out].into_iter().flatten() {
+    let out = a.out.as_ref().filter(|_| written_out);
+    for p in [a.picture.as_ref(), out].into_iter().flatten() {
         println!("wrote {}", p.display());
     }
     Ok(())

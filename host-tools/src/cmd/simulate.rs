@@ -165,6 +165,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         h.stage(&mut staged, path)?;
     }
     output::commit(staged)?;
+    for path in [&a.trace, &a.heatmap].into_iter().flatten() {
+        println!("wrote {}", path.display());
+    }
     if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
         print!("{}", report_text(&result, &config, plant, wall));
     } else {

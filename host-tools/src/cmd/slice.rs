@@ -3,7 +3,7 @@
 //! short summary. All the work is the library's; this file maps options and prints.
 
 use crate::slicer::gcode;
-use crate::slicer::gcode_dialect::Kind;
+use crate::slicer::gcode_dialect::{self, Kind};
 use crate::slicer::gcode_exec::{self, RunExport};
 use crate::slicer::image::{Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
@@ -64,10 +64,19 @@ pub struct Args {
     /// executor's run, then on the text.
     #[arg(long, value_name = "MIB", default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1_048_576))]
     pub gcode_max_mb: u64,
+    /// G-code written before the job's first move (`--gcode-style run`): homing, a
+    /// purge line, whatever the machine needs; at most 64 KiB of text.
+    #[arg(long, value_name = "FILE")]
+    pub gcode_start: Option<PathBuf>,
+    /// G-code written after the job's last move, before `; end of job` (`--gcode-style
+    /// run`): park, motors off; at most 64 KiB of text.
+    #[arg(long, value_name = "FILE")]
+    pub gcode_end: Option<PathBuf>,
     /// Also write a PNG of the toolpath coloured by material, travel moves dashed.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
-    /// Draw only this layer in the preview (0 = the first) [default: all, top view].
+    /// Draw only this layer in the preview (0 = the first) [default: one layer only: it;
+    /// several: a grid of up to 9 layers].
     #[arg(long, value_name = "N", requires = "preview")]
     pub preview_layer: Option<usize>,
     /// Images: layers to stack [default: 1]. Meshes: print at most this many layers.
@@ -221,6 +230,30 @@ fn flagged(e: SliceError) -> anyhow::Error {
     }
 }
 
+/// Largest start or end G-code file, bytes: a few hundred lines is already a long one.
+pub const MAX_HOST_GCODE_BYTES: u64 = 64 << 10;
+
+/// Reads a start/end G-code file named by `flag`: text, within its size limit.
+fn host_gcode(flag: &str, path: Option<&Path>) -> anyhow::Result<Option<String>> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let len = std::fs::metadata(path)
+        .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?
+        .len();
+    if len > MAX_HOST_GCODE_BYTES {
+        anyhow::bail!(
+            "{flag} {}: {len} bytes; start and end G-code are at most {MAX_HOST_GCODE_BYTES} bytes",
+            path.display()
+        );
+    }
+    let bytes =
+        std::fs::read(path).map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| anyhow::anyhow!("{flag} {}: not text (UTF-8)", path.display()))?;
+    Ok(Some(text))
+}
+
 /// The default job path: the first design's stem with `.dlp`, in the current directory.
 fn default_out(design: &Path) -> PathBuf {
     let stem = design
@@ -236,6 +269,11 @@ fn default_out(design: &Path) -> PathBuf {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let req = a.request();
     let opts = req.options().map_err(flagged)?;
+    let host = gcode_dialect::HostText {
+        progress: true,
+        start: host_gcode("--gcode-start", a.gcode_start.as_deref())?,
+        end: host_gcode("--gcode-end", a.gcode_end.as_deref())?,
+    };
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
     let (design, path) = if a.calibration_pattern {
@@ -255,6 +293,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.markers || a.calibration_pattern {
         sliced = slicer::with_markers(sliced, &config, &machine)?;
     }
+    // Checked before the (possibly long) G-code export, so nothing waits on a typo.
+    let layers = preview::layer_count(&sliced.commands, sliced.header.start_um);
+    if let Some(layer) = a.preview_layer.filter(|&l| l >= layers) {
+        anyhow::bail!(
+            "--preview-layer {layer}: the job has {layers} layer(s), numbered 0 to {}",
+            layers - 1
+        );
+    }
     // Everything is computed before anything is written; each file is written whole.
     let gcode = a
         .gcode
@@ -271,6 +317,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     let opt = RunExport {
                         dialect: req.gcode.dialect(config.inlets.len())?,
                         max_bytes: req.gcode.max_bytes,
+                        host: host.clone(),
                         ..RunExport::default()
                     };
                     // The executor runs the whole job: minutes for a day-long print.
@@ -288,9 +335,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     return r;
                 }
             };
-            if req.gcode.dialect != Kind::Plain || req.gcode.ports.is_some() {
+            if req.gcode.dialect != Kind::Plain
+                || req.gcode.ports.is_some()
+                || host.start.is_some()
+                || host.end.is_some()
+            {
                 return Err(SliceError::Option(format!(
-                    "--gcode-dialect and --gcode-ports apply to --gcode-style run, not {}",
+                    "--gcode-dialect, --gcode-ports, --gcode-start and --gcode-end apply to --gcode-style run, not {}",
                     req.gcode.style.name()
                 )));
             }
@@ -319,7 +370,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
     }
     if let Some(path) = &a.preview {
-        let img = preview::draw(
+        let names: Vec<String> = config
+            .inlets
+            .iter()
+            .map(|i| i.material.to_string())
+            .collect();
+        let img = preview::figure(
             &sliced.commands,
             sliced.header.start_um,
             &PreviewOptions {
@@ -327,10 +383,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 layer: a.preview_layer,
                 ..Default::default()
             },
-        );
+            &names,
+        )?;
         preview::stage_png(&mut staged, path, &img)?;
     }
+    let existed: Vec<PathBuf> = [Some(&out), a.gcode.as_ref(), a.preview.as_ref()]
+        .into_iter()
+        .flatten()
+        .filter(|p| p.exists())
+        .cloned()
+        .collect();
     output::commit(staged)?;
+    let replaced = |p: &PathBuf| {
+        if existed.contains(p) {
+            " (replaced the file that was there)"
+        } else {
+            ""
+        }
+    };
     let job_len = job_bytes.len();
     let segs = sliced.header.print_segments.max(1) as f64;
     let st = &sliced.stats;
@@ -347,25 +417,42 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         st.prime_mm,
         st.travel_mm,
     );
+    if unsized_image(&a) {
+        eprintln!(
+            "dollop: note: no --width-mm or --height-mm, so one pixel is one line pitch ({} mm) and this prints {:.1} x {:.1} mm; give --width-mm to choose the size",
+            config.channel.line_pitch_mm, sliced.size_mm[0], sliced.size_mm[1]
+        );
+    }
     println!(
-        "wrote {} ({} bytes, {:.2} bytes per print segment, {:.2} in the body)",
+        "wrote {} ({} bytes, {:.2} bytes per print segment, {:.2} in the body){}",
         out.display(),
         job_len,
         job_len as f64 / segs,
-        sliced.body_bytes_per_segment()
+        sliced.body_bytes_per_segment(),
+        replaced(&out)
     );
     if let (Some(path), Some((_, gs))) = (&a.gcode, gcode) {
         println!(
-            "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches)",
+            "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches){}",
             path.display(),
             gs.bytes,
             gs.bytes as f64 / segs,
             gs.print_moves,
-            gs.switches
+            gs.switches,
+            replaced(path)
         );
     }
     if let Some(path) = &a.preview {
-        println!("wrote {}", path.display());
+        println!("wrote {}{}", path.display(), replaced(path));
     }
     Ok(())
+}
+
+/// An image sliced without a size: one pixel per line pitch, often not what was meant.
+fn unsized_image(a: &Args) -> bool {
+    !a.calibration_pattern
+        && a.width_mm.is_none()
+        && a.height_mm.is_none()
+        && a.designs.len() == 1
+        && slicer::design_kind(&a.designs[0]).is_ok_and(|k| k == slicer::DesignKind::Image)
 }

@@ -1,7 +1,8 @@
 //! The picture `dollop inspect` writes: the photo rectified into the design's frame, the
 //! footprint outlined, each design boundary drawn across its bead and the landed one
 //! beside it coloured by its offset (green within 0.05 mm, yellow within 0.2 mm, red
-//! beyond), boundaries not found in grey.
+//! beyond), boundaries not found in grey; framed on mm axes with a key (`figure`) for the
+//! file `dollop inspect --picture` writes.
 
 use super::Inspection;
 use image::{Rgb, RgbImage};
@@ -60,4 +61,55 @@ pub fn draw(i: &Inspection) -> RgbImage {
         draw_filled_circle_mut(&mut img, (q[0] as i32, q[1] as i32), r, colour);
     }
     img
+}
+
+/// Smallest width of the framed picture's plate, pixels: a photo rectified at the
+/// measuring resolution can be a few hundred pixels, too small to read the marks.
+pub const MIN_PLATE_PX: u32 = 1000;
+
+/// The picture for a person: the inspection drawn over the rectified photo, enlarged to at
+/// least [`MIN_PLATE_PX`] wide, on mm axes with a key to its marks.
+pub fn figure(i: &Inspection) -> Result<RgbImage, String> {
+    let img = draw(i);
+    let f = &i.frame;
+    let (w, h) = (img.width().max(1), img.height().max(1));
+    let img = if w < MIN_PLATE_PX {
+        let k = MIN_PLATE_PX as f64 / w as f64;
+        image::imageops::resize(
+            &img,
+            MIN_PLATE_PX,
+            (h as f64 * k).round() as u32,
+            image::imageops::FilterType::Triangle,
+        )
+    } else {
+        img
+    };
+    let plate = crate::figure::Plate {
+        caption: String::new(),
+        x_mm: (
+            f.lo[0] - f.margin_mm,
+            f.lo[0] - f.margin_mm + w as f64 / f.px_per_mm,
+        ),
+        y_mm: (
+            f.hi[1] + f.margin_mm - h as f64 / f.px_per_mm,
+            f.hi[1] + f.margin_mm,
+        ),
+        img,
+    };
+    use crate::figure::Key;
+    let key = [
+        Key::Line("design boundary, across its bead".into(), [255, 255, 255]),
+        Key::Line("the design's footprint".into(), [255, 255, 255]),
+        Key::Dot("landed within 0.05 mm".into(), offset_colour(0.0).0),
+        Key::Dot("landed within 0.2 mm".into(), offset_colour(0.1).0),
+        Key::Dot("landed more than 0.2 mm off".into(), offset_colour(1.0).0),
+        Key::Dot("not found in the photo".into(), [128, 128, 128]),
+        Key::Note(format!("photo rectified at {:.1} px/mm", f.px_per_mm)),
+    ];
+    crate::figure::framed(
+        "where the boundaries landed",
+        std::slice::from_ref(&plate),
+        1,
+        &key,
+    )
 }

@@ -404,35 +404,40 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
     }
 }
 
-/// The TOML lines that turn `from` into `to`.
+/// The TOML that turns `from` into `to`: valid TOML throughout, each inlet's corrections in
+/// an `[[inlet]]` table named by its `material` (what `dollop config --apply` matches on).
 fn fragment_for(i: &Inspection, from: &Config, to: &Config) -> String {
+    use crate::calibrate::format::{toml_float, toml_string};
+    use crate::calibrate::rheology::rheology_toml;
     let mut s = format!(
-        "# dollop inspect {} --suggest: corrections to the machine config.\n",
+        "# dollop inspect {} --suggest: corrections to the machine config.\n\
+         # Apply with: dollop config --apply THIS.toml MACHINE.toml\n",
         i.path.display()
     );
     if to.channel.channel_length_mm != from.channel.channel_length_mm {
         let _ = writeln!(
             s,
-            "[channel]\nchannel_length_mm = {:.4}",
-            to.channel.channel_length_mm
+            "[channel]\nchannel_length_mm = {}",
+            toml_float(to.channel.channel_length_mm as f64, 5)
         );
     }
-    for (k, (a, b)) in from.inlets.iter().zip(&to.inlets).enumerate() {
-        if a.valve_open_delay_ms != b.valve_open_delay_ms {
+    for (a, b) in from.inlets.iter().zip(&to.inlets) {
+        let lag = a.valve_open_delay_ms != b.valve_open_delay_ms;
+        let rheology = a.rheology != b.rheology;
+        if !lag && !rheology {
+            continue;
+        }
+        let _ = writeln!(s, "[[inlet]]\nmaterial = {}", toml_string(&a.material));
+        if lag {
             let _ = writeln!(
                 s,
-                "# inlet {k} ({}): valve_open_delay_ms = {:.2}, valve_close_delay_ms = {:.2}",
-                a.material, b.valve_open_delay_ms, b.valve_close_delay_ms
+                "valve_open_delay_ms = {}\nvalve_close_delay_ms = {}",
+                toml_float(b.valve_open_delay_ms as f64, 4),
+                toml_float(b.valve_close_delay_ms as f64, 4)
             );
         }
-        if a.rheology != b.rheology {
-            let r = toml::to_string(&b.rheology).unwrap_or_default();
-            let _ = writeln!(
-                s,
-                "# inlet {k} ({}): rheology = {{ {} }}",
-                a.material,
-                r.trim().replace('\n', ", ")
-            );
+        if rheology {
+            let _ = writeln!(s, "rheology = {}", rheology_toml(&b.rheology));
         }
     }
     s

@@ -197,7 +197,7 @@ fn simulate_inner(run: &SimRun, config: &Config, job: &Job) -> Result<Outcome, S
     let mut png = Vec::new();
     {
         use image::ImageEncoder;
-        let img = heat.image();
+        let img = heat.figure()?;
         image::codecs::png::PngEncoder::new(&mut png)
             .write_image(
                 img.as_raw(),

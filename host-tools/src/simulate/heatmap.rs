@@ -1,7 +1,9 @@
 //! The plate as a picture: the material deposited in each cell and every material
-//! boundary as a dot coloured by its error. Painting only: the run that feeds it is
-//! `simulate`'s, the staging of files `slicer::output`'s.
+//! boundary as a dot coloured by its error; the file written is that picture framed on mm
+//! axes with a material key and a labelled error scale (`figure`). Painting only: the run
+//! that feeds it is `simulate`'s, the staging of files `slicer::output`'s.
 
+use crate::figure;
 use crate::slicer::{self, output};
 use dollop::config::Config;
 use dollop_sim::metrics::Boundary;
@@ -19,7 +21,12 @@ pub struct Heatmap {
     img: image::RgbImage,
     radius: i64,
     last: Option<(i64, i64, u8)>,
+    names: Vec<String>,
+    used: [bool; PALETTE.len()],
 }
+
+/// The error at which a boundary's dot is fully red, mm: the goal boundaries are held to.
+pub const ERROR_SCALE_MM: f64 = 0.05;
 
 /// Largest heatmap side, pixels.
 const MAX_SIDE: f64 = 4000.0;
@@ -61,6 +68,12 @@ impl Heatmap {
             img: image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255])),
             radius: ((pitch * 0.5 * px_per_mm).round() as i64).max(1),
             last: None,
+            names: config
+                .inlets
+                .iter()
+                .map(|i| i.material.to_string())
+                .collect(),
+            used: [false; PALETTE.len()],
         }
     }
 
@@ -96,6 +109,7 @@ impl Heatmap {
             return;
         }
         self.last = Some((px, py, material));
+        self.used[material as usize % PALETTE.len()] = true;
         let colour = PALETTE[material as usize % PALETTE.len()];
         self.disk(px, py, self.radius, colour);
     }
@@ -108,14 +122,44 @@ impl Heatmap {
             self.disk(px, py, r + 1, [0, 0, 0]);
             self.disk(px, py, r, error_colour(b.error().abs()));
         }
-        // Legend: the error scale from 0 (left) to 0.05 mm (right) along the top edge.
-        let w = (self.img.width() / 3).max(10);
-        for x in 0..w.min(self.img.width()) {
-            let c = error_colour(0.05 * x as f64 / w as f64);
-            for y in 0..6.min(self.img.height()) {
-                self.img.put_pixel(x, y, image::Rgb(c));
-            }
-        }
+    }
+
+    /// The plate framed for a person: mm axes, the materials deposited, the error scale.
+    pub fn figure(&self) -> Result<image::RgbImage, String> {
+        let (w, h) = (self.img.width() as f64, self.img.height() as f64);
+        let plate = figure::Plate {
+            caption: String::new(),
+            img: self.img.clone(),
+            x_mm: (self.x0, self.x0 + w / self.px_per_mm),
+            y_mm: (self.y1 - h / self.px_per_mm, self.y1),
+        };
+        let mut key: Vec<figure::Key> = self
+            .used
+            .iter()
+            .enumerate()
+            .filter(|(_, &u)| u)
+            .map(|(m, _)| {
+                let name = self
+                    .names
+                    .get(m)
+                    .cloned()
+                    .unwrap_or_else(|| format!("material {m}"));
+                figure::Key::Swatch(name, PALETTE[m])
+            })
+            .collect();
+        key.push(figure::Key::Note("dots: material boundaries".into()));
+        key.push(figure::Key::Bar {
+            label: "boundary error (mm)".into(),
+            lo: 0.0,
+            hi: ERROR_SCALE_MM,
+            colour: error_colour,
+        });
+        figure::framed(
+            "plate after the simulated print",
+            std::slice::from_ref(&plate),
+            1,
+            &key,
+        )
     }
 
     /// Writes the PNG atomically.
@@ -126,15 +170,19 @@ impl Heatmap {
         Ok(())
     }
 
-    /// Stages the PNG in `staged` (renamed into place when it is committed).
+    /// Stages the framed PNG ([`Heatmap::figure`]) in `staged` (renamed into place when
+    /// it is committed).
     pub fn stage(&self, staged: &mut output::Outputs, path: &Path) -> anyhow::Result<()> {
         use image::ImageEncoder;
+        let img = self
+            .figure()
+            .map_err(|e| anyhow::anyhow!("{}: cannot draw the heatmap: {e}", path.display()))?;
         output::stage(staged, path, |w| {
             image::codecs::png::PngEncoder::new(w)
                 .write_image(
-                    self.img.as_raw(),
-                    self.img.width(),
-                    self.img.height(),
+                    img.as_raw(),
+                    img.width(),
+                    img.height(),
                     image::ExtendedColorType::Rgb8,
                 )
                 .map_err(std::io::Error::other)
@@ -142,15 +190,15 @@ impl Heatmap {
         Ok(())
     }
 
-    /// The picture.
+    /// The plate alone, unframed, one pixel per cell.
     pub fn image(&self) -> &image::RgbImage {
         &self.img
     }
 }
 
-/// Green at 0, yellow at 0.025 mm, red at 0.05 mm and beyond.
-fn error_colour(e: f64) -> [u8; 3] {
-    let f = (e / 0.05).clamp(0.0, 1.0);
+/// Green at 0, yellow at half [`ERROR_SCALE_MM`], red at it and beyond.
+pub fn error_colour(e: f64) -> [u8; 3] {
+    let f = (e / ERROR_SCALE_MM).clamp(0.0, 1.0);
     if f < 0.5 {
         [(510.0 * f) as u8, 190, 40]
     } else {

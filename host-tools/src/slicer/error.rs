@@ -8,6 +8,12 @@ use std::path::{Path, PathBuf};
 /// Why a slice (or a job/G-code/preview read or write) did not happen.
 #[derive(Debug, thiserror::Error)]
 pub enum SliceError {
+    /// A picture could not be drawn (or was asked for beyond the job).
+    #[error("preview: {message}")]
+    Picture {
+        /// What went wrong, in words.
+        message: String,
+    },
     /// The file does not exist.
     #[error("{}: no such file", .path.display())]
     NotFound {

@@ -237,13 +237,84 @@ impl Writer<'_> {
     }
 }
 
-/// Writes `steps` (head starting at `start`, mm) in `dialect`.
+/// What a print host reads besides the moves: the user's start and end G-code (written
+/// as given), and whether to write progress (`M73`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct HostText {
+    /// Write `M73 P<percent> R<minutes left>` at each whole percent of the run's time
+    /// (`dollop slice` does; off by default so that a bare export is moves only).
+    pub progress: bool,
+    /// Written after the header comments, before the first move (homing, heating...).
+    pub start: Option<String>,
+    /// Written after the last move and the valves' closing, before `; end of job`.
+    pub end: Option<String>,
+}
+
+/// The run's duration at the steps' own speeds, s (what the executor took; the firmware's
+/// acceleration, fitted in by `gcode_ramps`, is already in the steps).
+pub fn estimated_seconds(steps: &[Step], start: [f64; 3]) -> f64 {
+    let mut at = start;
+    let mut t = 0.0;
+    for st in steps {
+        match *st {
+            Step::Move { to, v, .. } => {
+                let len = (0..3).map(|a| (to[a] - at[a]).powi(2)).sum::<f64>().sqrt();
+                if v > 0.0 {
+                    t += len / v;
+                }
+                at = to;
+            }
+            Step::Dwell(d) => t += d.max(0.0),
+            Step::Valves(_) => {}
+        }
+    }
+    t
+}
+
+/// `1h 2m 3s`, as PrusaSlicer writes its estimate (hosts parse this form).
+fn hms(s: f64) -> String {
+    let s = s.max(0.0).round() as u64;
+    let (h, m, sec) = (s / 3600, (s / 60) % 60, s % 60);
+    match (h, m) {
+        (0, 0) => format!("{sec}s"),
+        (0, _) => format!("{m}m {sec}s"),
+        _ => format!("{h}h {m}m {sec}s"),
+    }
+}
+
+/// Heights of the layers that hold beads (moves with a valve open), mm (rounded as
+/// written), in order.
+fn layer_heights(steps: &[Step]) -> Vec<f64> {
+    let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
+    let mut open = 0u32;
+    let mut zs: Vec<f64> = steps
+        .iter()
+        .filter_map(|st| match *st {
+            Step::Valves(mask) => {
+                open = mask;
+                None
+            }
+            Step::Move {
+                to, travel: false, ..
+            } if open != 0 => Some(round(to[2])),
+            _ => None,
+        })
+        .collect();
+    zs.sort_by(f64::total_cmp);
+    zs.dedup();
+    zs
+}
+
+/// Writes `steps` (head starting at `start`, mm) in `dialect`, with the header, layer
+/// comments and progress print hosts read (`; estimated printing time`, `;TIME:`,
+/// `;LAYER_COUNT:`, `;LAYER:n`, `M73 P R`) and the user's start and end G-code.
 pub fn write(
     steps: &[Step],
     start: [f64; 3],
     config: &Config,
     material_names: &[String],
     dialect: &Dialect,
+    host: &HostText,
 ) -> (String, GcodeStats) {
     let inlets = config.inlets.len();
     let mut w = Writer {
@@ -262,6 +333,16 @@ pub fn write(
         "; dollop G-code ({} dialect), sampled from the executor's run: moves of at most 0.25 mm at the speeds the executor used, valves where it switched them, dwells where it stood",
         dialect.name()
     );
+    let total_s = estimated_seconds(steps, start);
+    let layers = layer_heights(steps);
+    // PrusaSlicer's and Cura's forms, which OctoPrint, Moonraker and DWC read.
+    let _ = writeln!(
+        w.out,
+        "; estimated printing time (normal mode) = {}\n;TIME:{}\n;LAYER_COUNT:{}",
+        hms(total_s),
+        total_s.round() as u64,
+        layers.len()
+    );
     for i in 0..inlets {
         let name = material_names.get(i).map_or("", |s| s.as_str());
         let port = dialect.port(i);
@@ -274,6 +355,11 @@ pub fn write(
             _ => format!("GPIO port {port}"),
         };
         let _ = writeln!(w.out, "; valve of inlet {i} ({name}) is {what}");
+    }
+    if let Some(text) = &host.start {
+        w.out.push_str("; start G-code (the user's)\n");
+        w.out.push_str(text.trim_end());
+        w.out.push_str("\n; end of start G-code\n");
     }
     w.out.push_str("G21\nG90\n");
     if dialect.kind == Kind::RepRap {
@@ -293,6 +379,10 @@ pub fn write(
     let z_f = config.motion.max_speed_mm_s[2] as f64;
     let travel_f = config.motion.travel_speed_mm_s as f64;
     let mut zs = [f64::NAN, f64::NAN, start[2]];
+    // The first layer begins with the move to the start; the others where Z reaches them.
+    if !layers.is_empty() {
+        w.out.push_str(";LAYER:0\n");
+    }
     w.out.push_str("G0 Z");
     num(&mut w.out, start[2], 4);
     w.out.push_str(" F");
@@ -308,7 +398,42 @@ pub fn write(
     let mut counted = 0u32;
     let mut exact = start;
     let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
+    // Progress by the run's time: M73 at each whole percent, R in minutes left.
+    let mut elapsed = 0.0f64;
+    let mut percent = 0u32;
+    if host.progress {
+        let _ = writeln!(w.out, "M73 P0 R{}", (total_s / 60.0).ceil() as u64);
+    }
+    let mut next_layer = 1usize;
     for st in steps {
+        if host.progress && total_s > 0.0 {
+            let p = ((elapsed / total_s) * 100.0).floor().min(99.0) as u32;
+            if p > percent {
+                percent = p;
+                let left = ((total_s - elapsed) / 60.0).ceil().max(0.0) as u64;
+                let _ = writeln!(w.out, "M73 P{p} R{left}");
+            }
+        }
+        match *st {
+            Step::Move { to, v, .. } => {
+                if let Some(&z) = layers.get(next_layer) {
+                    if round(to[2]) >= z {
+                        w.flush_dwell();
+                        let _ = writeln!(w.out, ";LAYER:{next_layer}");
+                        next_layer += 1;
+                    }
+                }
+                let len = (0..3)
+                    .map(|a| (to[a] - exact[a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                if v > 0.0 {
+                    elapsed += len / v;
+                }
+            }
+            Step::Dwell(d) => elapsed += d.max(0.0),
+            Step::Valves(_) => {}
+        }
         match *st {
             Step::Move { to, v, travel } => {
                 let len = ((to[0] - exact[0]).powi(2)
@@ -367,7 +492,16 @@ pub fn write(
     if w.valves != 0 {
         w.m42(0);
     }
-    w.out.push_str("M400\n; end of job\n");
+    w.out.push_str("M400\n");
+    if host.progress {
+        w.out.push_str("M73 P100 R0\n");
+    }
+    if let Some(text) = &host.end {
+        w.out.push_str("; end G-code (the user's)\n");
+        w.out.push_str(text.trim_end());
+        w.out.push('\n');
+    }
+    w.out.push_str("; end of job\n");
     w.stats.bytes = w.out.len();
     (w.out, w.stats)
 }
@@ -423,7 +557,14 @@ mod tests {
     #[test]
     fn each_dialect_writes_its_words() {
         let c = config();
-        let (plain, st) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &Dialect::default());
+        let (plain, st) = write(
+            &steps(),
+            [0.0, 0.0, 0.6],
+            &c,
+            &[],
+            &Dialect::default(),
+            &HostText::default(),
+        );
         assert_eq!(st.switches, 1);
         assert_eq!(st.print_moves, 2);
         // The 0.4 ms the dwell leaves out goes on the next move: 1 mm in 0.1004 s.
@@ -435,7 +576,14 @@ mod tests {
             kind: Kind::RepRap,
             ports: vec![3, 4],
         };
-        let (g, _) = write(&steps(), [0.0, 0.0, 0.6], &c, &[], &rrf);
+        let (g, _) = write(
+            &steps(),
+            [0.0, 0.0, 0.6],
+            &c,
+            &[],
+            &rrf,
+            &HostText::default(),
+        );
         assert!(g.contains("M670 P3:4 T0\n"), "{g}");
         // Standing: M400 and M42; moving: the bitmap on the next move.
         assert!(
@@ -450,6 +598,7 @@ mod tests {
             &c,
             &[],
             &Dialect::new(Kind::Klipper),
+            &HostText::default(),
         );
         assert!(
             g.contains("SET_PIN PIN=dollop_valve0 VALUE=1\nG4 P10\nG1 X1 F597.6\nSET_PIN PIN=dollop_valve0 VALUE=0\nSET_PIN PIN=dollop_valve1 VALUE=1\nG1 X1.25 F750\n"),
@@ -462,6 +611,7 @@ mod tests {
             &c,
             &[],
             &Dialect::new(Kind::MarlinM42),
+            &HostText::default(),
         );
         assert!(
             g.contains("G1 X1 F597.6\nM400\nM42 P0 S0\nM42 P1 S255\nG1 X1.25"),
@@ -474,6 +624,7 @@ mod tests {
             &c,
             &[],
             &Dialect::new(Kind::Marlin),
+            &HostText::default(),
         );
         assert!(
             g.contains("M106 P0 S255\nG4 P10\nG1 X1 F597.6\nM107 P0\nM106 P1 S255\nG1 X1.25 F750\nM107 P1\nG4 P30\n"),

@@ -273,6 +273,8 @@ pub struct RunExport {
     /// Refuse a job whose G-code would be larger, bytes (checked from the job before the
     /// executor runs, and on the text written).
     pub max_bytes: u64,
+    /// The user's start and end G-code.
+    pub host: gcode_dialect::HostText,
 }
 
 /// Default size limit of the G-code, bytes: 1 GiB, about 1.5 million print segments of
@@ -286,6 +288,7 @@ impl Default for RunExport {
             sampling: Sampling::default(),
             dialect: Dialect::default(),
             max_bytes: DEFAULT_MAX_BYTES,
+            host: gcode_dialect::HostText::default(),
         }
     }
 }
@@ -370,7 +373,14 @@ pub fn export_with_progress(
     drop(sampled);
     let steps = gcode_ramps::run_ups(&centred, start, accel);
     drop(centred);
-    let (text, stats) = gcode_dialect::write(&steps, start, config, material_names, &opt.dialect);
+    let (text, stats) = gcode_dialect::write(
+        &steps,
+        start,
+        config,
+        material_names,
+        &opt.dialect,
+        &opt.host,
+    );
     if text.len() as u64 > opt.max_bytes {
         return Err(too_large(text.len() as u64, opt.max_bytes, "this job's is"));
     }

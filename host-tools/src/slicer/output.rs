@@ -255,11 +255,74 @@ pub fn commit(out: Outputs) -> Result<(), SliceError> {
         .map_err(|(path, source)| SliceError::Write { path, source })
 }
 
-/// A progress bar of `len` steps labelled `what`: drawn on stderr when it is a terminal,
-/// hidden otherwise (pipes, CI, tests).
+/// How often a pipe gets a progress line.
+pub const PIPE_PROGRESS_EVERY: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Progress on a stderr that is not a terminal (a pipe, a log file, CI): a plain line every
+/// [`PIPE_PROGRESS_EVERY`], the first after that long (work shorter than that stays quiet),
+/// never cursor movement.
+#[derive(Debug)]
+struct PipeLines {
+    last: Mutex<std::time::Instant>,
+}
+
+impl indicatif::TermLike for PipeLines {
+    fn width(&self) -> u16 {
+        100
+    }
+    fn move_cursor_up(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_down(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_right(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_left(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn write_line(&self, line: &str) -> std::io::Result<()> {
+        let now = std::time::Instant::now();
+        let mut last = self.last.lock().unwrap_or_else(|p| p.into_inner());
+        if line.trim().is_empty() || now - *last < PIPE_PROGRESS_EVERY {
+            return Ok(());
+        }
+        *last = now;
+        writeln!(std::io::stderr(), "{}", line.trim_end())
+    }
+    fn write_str(&self, s: &str) -> std::io::Result<()> {
+        self.write_line(s)
+    }
+    fn clear_line(&self) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn flush(&self) -> std::io::Result<()> {
+        std::io::stderr().flush()
+    }
+}
+
+/// A progress bar of `len` steps labelled `what` on stderr: drawn when stderr is a
+/// terminal, a plain line every few seconds otherwise (pipes, logs, CI), so a long run is
+/// never silent.
 pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
     if !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
+        let bar = indicatif::ProgressBar::with_draw_target(
+            Some(len),
+            indicatif::ProgressDrawTarget::term_like_with_hz(
+                Box::new(PipeLines {
+                    last: Mutex::new(std::time::Instant::now()),
+                }),
+                1,
+            ),
+        );
+        if let Ok(style) = indicatif::ProgressStyle::with_template(
+            "{msg}: {pos}/{len} ({percent} %, {elapsed} so far, about {eta} left)",
+        ) {
+            bar.set_style(style);
+        }
+        bar.set_message(what.to_string());
+        return bar;
     }
     let bar = indicatif::ProgressBar::new(len);
     let style = indicatif::ProgressStyle::with_template(

@@ -1,9 +1,12 @@
 //! Preview pictures of a job: the plate seen from above with every bead drawn in its
 //! material's colour at its width, later layers over earlier ones, and travel moves as
-//! thin dashed lines. PNG out, written atomically. Simulation heatmaps are not drawn here.
+//! thin dashed lines; framed with mm axes and a material key for people (`figure`), as a
+//! grid of layers when the job has several. PNG out, written atomically. Simulation
+//! heatmaps are not drawn here.
 
 use super::error::SliceError;
 use super::output::{stage, write_atomic, Outputs};
+use crate::figure;
 use dollop::Command;
 use image::{Rgb, RgbImage};
 use std::path::Path;
@@ -109,6 +112,120 @@ impl Canvas {
 
 /// Draws the toolpath of `commands` (starting at `start_um`) into an image.
 pub fn draw(commands: &[Command], start_um: [i32; 3], opts: &PreviewOptions) -> RgbImage {
+    draw_plate(commands, start_um, opts).img
+}
+
+/// Layers in a job that hold beads, numbered as the preview numbers them (from the first
+/// Z, each higher Z the next); a lift after the last bead is not a layer.
+pub fn layer_count(commands: &[Command], start_um: [i32; 3]) -> usize {
+    let mut z = start_um[2];
+    let (mut layer, mut last_printed) = (0usize, 0usize);
+    for c in commands {
+        match *c {
+            Command::Travel { z: tz, .. } | Command::Layer { z: tz } if tz > z => {
+                layer += 1;
+                z = tz;
+            }
+            Command::Print { .. } => last_printed = layer,
+            _ => {}
+        }
+    }
+    last_printed + 1
+}
+
+/// Most layers a multi-layer preview shows (evenly chosen, first and last included).
+pub const GRID_LAYERS: usize = 9;
+
+/// The preview for a person: the plate on mm axes with a key of the job's materials
+/// (named by `names`, by inlet) and of travel. A job of several layers, unless one layer
+/// is asked for, shows a grid of up to [`GRID_LAYERS`] layers, so that a material inside a
+/// part shows too. An asked-for layer beyond the job's is refused with the valid range.
+pub fn figure(
+    commands: &[Command],
+    start_um: [i32; 3],
+    opts: &PreviewOptions,
+    names: &[String],
+) -> Result<RgbImage, SliceError> {
+    let n = layer_count(commands, start_um);
+    if let Some(l) = opts.layer.filter(|&l| l >= n) {
+        return Err(SliceError::Picture {
+            message: format!(
+                "layer {l} asked for: the job has {n} layer(s), numbered 0 to {}",
+                n - 1
+            ),
+        });
+    }
+    let shown: Vec<Option<usize>> = match opts.layer {
+        Some(l) => vec![Some(l)],
+        None if n == 1 => vec![None],
+        None => {
+            let k = n.min(GRID_LAYERS);
+            let mut v: Vec<Option<usize>> = (0..k)
+                .map(|i| Some((i * (n - 1) + (k - 1) / 2) / (k - 1)))
+                .collect();
+            v.dedup();
+            v
+        }
+    };
+    let columns = (shown.len() as f64).sqrt().ceil() as usize;
+    let plates: Vec<figure::Plate> = shown
+        .iter()
+        .map(|&layer| {
+            let o = PreviewOptions {
+                layer,
+                max_px: (opts.max_px / columns as u32).max(200),
+                travel: opts.travel && shown.len() == 1,
+                ..*opts
+            };
+            let mut p = draw_plate(commands, start_um, &o);
+            p.caption = match layer {
+                Some(l) if n > 1 => format!("layer {l} of 0..{}", n - 1),
+                _ => String::new(),
+            };
+            p
+        })
+        .collect();
+    let mut used = [false; MATERIAL_COLOURS.len()];
+    for c in commands {
+        if let Command::Print { material, .. } = *c {
+            used[material as usize % MATERIAL_COLOURS.len()] = true;
+        }
+    }
+    let mut key: Vec<figure::Key> = used
+        .iter()
+        .enumerate()
+        .filter(|(_, &u)| u)
+        .map(|(m, _)| {
+            let name = names
+                .get(m)
+                .cloned()
+                .unwrap_or_else(|| format!("material {m}"));
+            figure::Key::Swatch(name, MATERIAL_COLOURS[m])
+        })
+        .collect();
+    if plates.len() == 1 && opts.travel {
+        key.push(figure::Key::Line(
+            "travel (valves shut)".into(),
+            [40, 40, 40],
+        ));
+    }
+    key.push(figure::Key::Note(format!(
+        "bead {:.2} mm wide",
+        opts.bead_mm
+    )));
+    let p = &plates[0];
+    let title = format!(
+        "toolpath: {} layer(s), plate {:.1} x {:.1} mm shown",
+        n,
+        p.x_mm.1 - p.x_mm.0,
+        p.y_mm.1 - p.y_mm.0
+    );
+    figure::framed(&title, &plates, columns, &key)
+        .map_err(|message| SliceError::Picture { message })
+}
+
+/// The picture and the mm it spans.
+fn draw_plate(commands: &[Command], start_um: [i32; 3], opts: &PreviewOptions) -> figure::Plate {
     let (lo, hi) = super::job_file::bounds(commands, start_um);
     let margin = opts.bead_mm * 2.0 + 1.0;
     let lo = [lo[0] as f64 * 1e-3 - margin, lo[1] as f64 * 1e-3 - margin];
@@ -163,7 +280,13 @@ pub fn draw(commands: &[Command], start_um: [i32; 3], opts: &PreviewOptions) -> 
             cv.dashed(a, b, [40, 40, 40]);
         }
     }
-    cv.img
+    let (w, h) = (cv.img.width() as f64, cv.img.height() as f64);
+    figure::Plate {
+        caption: String::new(),
+        x_mm: (lo[0], lo[0] + w / scale),
+        y_mm: (lo[1], lo[1] + h / scale),
+        img: cv.img,
+    }
 }
 
 /// Renders the toolpath and writes it as PNG to `path` (atomically).

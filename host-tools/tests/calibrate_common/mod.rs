@@ -67,9 +67,10 @@ pub fn run(args: &[&str]) -> Result<String, dollop_host::calibrate::CalError> {
     dollop_host::cmd::calibrate::execute(cli.args)
 }
 
-/// Merges `fragment` into configs/seed-paper.toml (top-level inlet keys into its first
-/// `[[inlet]]`, `[[inlet]]` tables into the inlets in order, other tables key by key),
-/// then parses and validates the result for 4 inlets.
+/// Applies `fragment` to a copy of configs/seed-paper.toml with `dollop config --apply`
+/// (top-level inlet keys into its first `[[inlet]]`, `[[inlet]]` tables into the inlets in
+/// order, other tables key by key), checks every comment survived, then parses and
+/// validates the result for 4 inlets.
 pub fn merge_into_seed(fragment: &str) -> Result<(Config, Machine<f64, 4>), String> {
     merge(fragment, false)
 }
@@ -81,38 +82,37 @@ pub fn merge_into_seed_all(fragment: &str) -> Result<(Config, Machine<f64, 4>), 
 }
 
 fn merge(fragment: &str, all_inlets: bool) -> Result<(Config, Machine<f64, 4>), String> {
-    let seed = std::fs::read_to_string(root().join("configs/seed-paper.toml")).unwrap();
-    let mut config: toml::Table = toml::from_str(&seed).unwrap();
-    let frag: toml::Table = toml::from_str(fragment).map_err(|e| format!("fragment: {e}"))?;
-    for (key, value) in frag {
-        match (key.as_str(), value) {
-            ("inlet", toml::Value::Array(items)) => {
-                let inlets = config["inlet"].as_array_mut().unwrap();
-                for (i, item) in items.into_iter().enumerate() {
-                    let target = inlets[i].as_table_mut().unwrap();
-                    for (k, v) in item.as_table().unwrap() {
-                        target.insert(k.clone(), v.clone());
-                    }
-                }
-            }
-            ("channel" | "motion" | "control", toml::Value::Table(t)) => {
-                let target = config[key.as_str()].as_table_mut().unwrap();
-                for (k, v) in t {
-                    target.insert(k, v);
-                }
-            }
-            (_, v) => {
-                let inlets = config["inlet"].as_array_mut().unwrap();
-                let n = if all_inlets { inlets.len() } else { 1 };
-                for inlet in &mut inlets[..n] {
-                    inlet.as_table_mut().unwrap().insert(key.clone(), v.clone());
-                }
-            }
-        }
+    // Through the command a user runs: `dollop config --apply FRAGMENT MACHINE --inlet ..`.
+    let seed_path = root().join("configs/seed-paper.toml");
+    let seed = std::fs::read_to_string(&seed_path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let (frag, machine) = (
+        write(dir.path(), "fragment.toml", fragment),
+        write(dir.path(), "machine.toml", &seed),
+    );
+    let tables = fragment.lines().filter(|l| l.trim() == "[[inlet]]").count();
+    let inlets = match (all_inlets, tables) {
+        (true, _) => "0,1".to_string(),
+        (false, 0) => "0".to_string(),
+        (false, n) => (0..n).map(|i| i.to_string()).collect::<Vec<_>>().join(","),
+    };
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dollop"))
+        .args(["config", "--apply"])
+        .arg(&frag)
+        .arg(&machine)
+        .args(["--inlet", &inlets])
+        .output()
+        .unwrap();
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).trim().to_string());
     }
-    let config: Config = toml::Value::Table(config)
-        .try_into()
-        .map_err(|e| format!("config: {e}"))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains(" -> "), "no change listed: {stdout}");
+    let text = std::fs::read_to_string(&machine).unwrap();
+    for comment in seed.lines().filter(|l| l.trim_start().starts_with('#')) {
+        assert!(text.contains(comment), "comment lost: {comment}");
+    }
+    let config: Config = toml::from_str(&text).map_err(|e| format!("config: {e}"))?;
     let machine = config
         .validate::<f64, 4>()
         .map_err(|e| format!("validate: {e}"))?;
