@@ -3,6 +3,7 @@
 //! checked, SI-converted form the flow model and executor run on. Parsing files is the
 //! host's job; every out-of-range or inconsistent value here becomes a `ConfigError`.
 
+use crate::capacity::RAMP_CAPACITY;
 use crate::real::Real;
 use crate::rheology::{FlowLaw, Rheology};
 use crate::vol::Vol;
@@ -12,9 +13,7 @@ use serde::{Deserialize, Serialize};
 mod pause;
 pub use pause::{Park, PauseConfig};
 
-/// Most inlets a config can list (the wire and file formats' limit); a build supports
-/// `N <= MAX_CONFIG_INLETS` of them and refuses configs with more.
-pub const MAX_CONFIG_INLETS: usize = 8;
+pub use crate::capacity::MAX_CONFIG_INLETS;
 /// Longest material name, bytes.
 pub const MATERIAL_NAME_LEN: usize = 24;
 
@@ -1171,13 +1170,13 @@ impl Config {
         let (corner_share, ramp_cycles) = if flow_step > 0.0 {
             let t = demand.window_s;
             let cycles = libm::ceil(t / dt) as u64 | 1;
-            if cycles > crate::ramp::RAMP_CAPACITY as u64 - 1 {
+            if cycles > RAMP_CAPACITY as u64 - 1 {
                 return Err(mc.err(
                     "max_accel_mm_s2",
                     Problem::RampTooLong {
                         step: flow_step as f32,
                         needed_ms: (t * 1e3) as f32,
-                        max_ms: ((crate::ramp::RAMP_CAPACITY - 1) as f64 * dt * 1e3) as f32,
+                        max_ms: ((RAMP_CAPACITY - 1) as f64 * dt * 1e3) as f32,
                     },
                 ));
             }

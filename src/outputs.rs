@@ -18,7 +18,7 @@ pub enum Axis {
 }
 
 /// Axes an `Outputs` may see: X, Y, Z and one plunger per possible inlet.
-pub const AXES: usize = 3 + crate::config::MAX_CONFIG_INLETS;
+pub const AXES: usize = 3 + crate::capacity::MAX_CONFIG_INLETS;
 
 impl Axis {
     /// The head's axes in index order.

@@ -7,14 +7,11 @@
 //! the flow. Each step of the planned velocity is then re-ramped over its own, shorter
 //! window (`crate::step_ramps`).
 
-use crate::executor::RunState;
 use crate::real::Real;
+use crate::state::RunState;
 use crate::step_ramps::StepRamps;
 
-/// Frames the ring holds: a window of up to `RAMP_CAPACITY - 1` cycles (51 ms at
-/// 10 kHz: the seed printhead's 22.5 mm/s step at 630 mm/s^2 of X/Y limit). A power of
-/// two, for the index mask; 48 bytes a frame with four inlets, 24 KiB in all.
-pub const RAMP_CAPACITY: usize = 512;
+pub use crate::capacity::RAMP_CAPACITY;
 
 /// Position unit in the ring: 0.1 um, so that sums are exact (no drift over a job).
 const UNIT_PER_MM: f32 = 1.0e4;

@@ -232,7 +232,8 @@ impl StepRamps {
     /// step is kept.
     #[inline(always)]
     fn m(&self, now: u32, at: u32) -> i32 {
-        (now.wrapping_sub(at) & (crate::ramp::RAMP_CAPACITY as u32 - 1)) as i32 - self.half_max + 1
+        (now.wrapping_sub(at) & (crate::capacity::RAMP_CAPACITY as u32 - 1)) as i32 - self.half_max
+            + 1
     }
 
     /// Whether any step is being re-ramped.
