@@ -563,7 +563,7 @@ impl<S: JobStore> Core<S> {
                         return Err(Refusal::Config(text(format_args!(
                             "{}: {}",
                             e.field,
-                            problem_name(&e.problem)
+                            e.problem.name()
                         ))));
                     }
                 };
@@ -1048,26 +1048,6 @@ impl<S: JobStore> Core<S> {
             f.fed += 1;
             self.fed = f.fed;
         }
-    }
-}
-
-fn problem_name(p: &crate::config::Problem) -> &'static str {
-    use crate::config::Problem as P;
-    match p {
-        P::NotFinite => "not a finite number",
-        P::NotPositive(_) => "must be above zero",
-        P::Negative(_) => "must not be negative",
-        P::OutOfRange { .. } => "outside the accepted range",
-        P::TooManyInlets { .. } => "more inlets than this board supports",
-        P::NoInlets => "at least one inlet is needed",
-        P::EmptyTravel => "travel_min_mm must be below travel_max_mm",
-        P::RateNotDivisor(_) => "the rate must divide 1000000",
-        P::StepRate { .. } => "needs more steps/s than the drivers allow",
-        P::FlowTooFast { .. } => "the flow can push the head past the print-speed cap",
-        P::Above { .. } => "above its bound",
-        P::AutoPressure => "\"auto\" pressure could not be computed",
-        // Kinds added later: the host's own check of the config names them.
-        _ => "invalid",
     }
 }
 
