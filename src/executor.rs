@@ -621,7 +621,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.safe_state(fault, out);
     }
 
-    /// The one path to the safe state: all valves closed, motion stopped, drivers off.
+    /// The one path to the safe state: every valve closed, motion stopped, drivers off.
     fn safe_state(&mut self, fault: Fault, out: &mut impl Outputs) {
         self.safe_outputs(out);
         self.stop_ramp();
@@ -629,14 +629,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.pending_fault = None;
     }
 
+    /// The outputs' one safe state (`outputs::force_safe`: every valve a config can
+    /// name, not only this machine's inlets), and the executor's record of them.
     fn safe_outputs(&mut self, out: &mut impl Outputs) {
-        for i in 0..self.machine.inlet_count() {
-            out.valve(i as u8, false);
-        }
+        crate::outputs::force_safe(out);
         self.valves_out = 0;
         self.model.command(0);
         self.want = None;
-        out.drivers(false);
         self.drivers_on = false;
     }
 
