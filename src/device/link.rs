@@ -571,7 +571,6 @@ impl<S: JobStore> Core<S> {
 
     /// Validates a config as the control loop will run it, checks it against this board,
     /// and hands the machine over.
-    #[inline(never)] // the validated machine is large: off `act`'s frame
     fn load_config(&mut self, c: Config, port: &mut impl ToControl) -> Result<Reply, Refusal> {
         if let Some(r) = self.snapshot_busy(port) {
             return Err(r);
@@ -618,7 +617,6 @@ impl<S: JobStore> Core<S> {
 
     /// Starts the uploaded job: it must be whole, made for the config loaded, and the
     /// machine idle, homed and not stopped.
-    #[inline(never)] // the job header and the feeder's decoder: off `act`'s frame
     fn start(&mut self, snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
         halted(snap)?;
         if snap.estop {
