@@ -402,6 +402,9 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// The steps of the plan's velocity the ramp window re-ramps over their own windows.
     step_ramps: StepRamps,
     ramped: bool,
+    /// Ramped, and the valves' flow changes are first-order ones that
+    /// `crate::switch_window` sizes a window for at each decision.
+    sizing: bool,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -451,6 +454,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             ramp: Ramp::new(),
             step_ramps: StepRamps::new(),
             ramped: false,
+            sizing: false,
         }
     }
 
@@ -495,6 +499,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.plunger_vol = [Vol::ZERO; N];
         self.plunger_steps = [0; N];
         self.ramped = self.machine.ramp_cycles > 1;
+        self.sizing = self.ramped
+            && self
+                .machine
+                .inlets
+                .iter()
+                .all(|i| i.syringe.is_none() && i.rise_s > R::ZERO && i.decay_s > R::ZERO);
         self.hold_ramp();
     }
 
@@ -1038,9 +1048,21 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// (`last_dv` sums a catch-up's cycles). Out of line, as `ramped_report`.
     #[inline(never)]
     fn push_frame(&mut self, dv: Vol) {
+        if self.ramp.narrowing() {
+            // In tail position: the usual path keeps its registers.
+            return self.push_frame_narrow(dv);
+        }
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         self.ramp.push(f, &mut self.step_ramps);
+    }
+
+    /// `push_frame` while a valve decision's window narrows the ramp's mean.
+    #[inline(never)]
+    fn push_frame_narrow(&mut self, dv: Vol) {
+        let mut f = self.frame();
+        f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.ramp.push_narrow(f, &mut self.step_ramps);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
@@ -1185,6 +1207,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
                 self.want = Some(self.entry_material);
+                if self.sizing {
+                    self.size_ramp(Some(self.entry_material));
+                }
                 self.model.command(1 << self.entry_material);
                 self.stop.reset();
                 self.switch.reset();
@@ -1349,6 +1374,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     self.switch.work(&self.model);
                 }
                 if due {
+                    if self.sizing {
+                        self.size_ramp(Some(m));
+                    }
                     self.model.command(1 << m);
                     self.want = Some(m);
                     self.entry_material = m;
@@ -1367,6 +1395,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     .answer(&self.model, Goal::Stop)
                     .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
                 if due {
+                    if self.sizing {
+                        self.size_ramp(None);
+                    }
                     self.model.command(0);
                     self.want = None;
                     self.phase = Phase::Print { stopping: true };
@@ -1377,6 +1408,21 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         Ok(())
+    }
+
+    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
+    /// it opens, none to stop): once per decision, from the channel's contents now
+    /// (`crate::switch_window`); the machine's window where those do not say.
+    #[inline(never)]
+    fn size_ramp(&mut self, opening: Option<u8>) {
+        let h = crate::switch_window::switch_half(
+            &self.machine,
+            &self.model,
+            self.model.commanded(),
+            opening,
+        )
+        .unwrap_or(self.machine.ramp_cycles / 2);
+        self.ramp.set_goal(h);
     }
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs

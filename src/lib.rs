@@ -20,6 +20,7 @@ pub mod real;
 pub mod rheology;
 pub mod step_gen;
 pub mod step_ramps;
+pub mod switch_window;
 pub mod vol;
 pub mod wire;
 

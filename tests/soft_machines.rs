@@ -71,9 +71,15 @@ fn board() -> dollop_sim::Job {
     job(&fill(24.0, 16, 1), chessboard(4.0))
 }
 
+/// Each valve decision sizes its own ramp window from the channel's contents then
+/// (`dollop::switch_window`): on the 4 mm board, with one paste in the channel at each
+/// decision, 83 cycles for paste B opening into paste A (the rise overtaking A's decay
+/// at 542 mm/s^2), 21 for B closing and for a bead's end, none at a bead's start. At 500
+/// the machine's one window (415 cycles) smeared every change, 18.9 % off over 0.2 mm;
+/// now 0.96 % (X 481, Y 275 mm/s^2), 0.18 % at 1 000 and 0.03 % at 2 000.
 #[test]
 fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
-    for a in [1000.0f32, 2000.0] {
+    for a in [500.0f32, 1000.0, 2000.0] {
         let cfg = soft(a, false);
         let (section, bound, _, _) = assert_soft(
             &format!("chessboard/real valves {a}"),
@@ -86,17 +92,22 @@ fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
     }
 }
 
-/// Known limit at 500 mm/s^2: paste B's line closing into a channel full of paste A
-/// slows the head at up to 1 124 mm/s^2, so the one ramp window the machine has must be
-/// 44.6 ms long, and every other change of the flow is smeared over it too: the axes keep
-/// their limit, the section does not keep 1 % (measured 18.9 % off over 0.2 mm here, 15.4 %
-/// on the 48 px chessboard PNG as sliced). Windows
-/// sized per change of the flow would keep both; this measures the limit until then.
+/// Known limit at 500 mm/s^2: features shorter than the channel (0.6 mm stripes) switch
+/// with several pastes in it, whose moving boundaries change the flow on top of what the
+/// valves do, so each decision keeps the machine's window (415 cycles, sized for paste B
+/// closing into a channel full of paste A at up to 1 124 mm/s^2), which smears the
+/// flow's every change: the axes keep their limit, the section does not keep 1 %
+/// (measured 30.8 % off over 0.2 mm; sized as if the channel held one paste, 2.5 % but
+/// 685 mm/s^2). This measures the limit until windows account for the contents' motion.
 #[test]
-fn real_valves_at_500_keep_the_limit_and_the_known_section_cost() {
+fn real_valves_at_500_keep_the_limit_and_the_known_section_cost_on_short_features() {
     let cfg = soft(500.0, false);
-    let r = run(&cfg, &board());
-    summary("chessboard/real valves 500", &r);
+    let f = Fill {
+        cell_mm: 0.1,
+        ..fill(9.0, 4, 1)
+    };
+    let r = run(&cfg, &job(&f, stripes(0.6)));
+    summary("short features/real valves 500", &r);
     assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
     assert!(
         r.metrics.mismatches.is_empty(),
@@ -113,7 +124,7 @@ fn real_valves_at_500_keep_the_limit_and_the_known_section_cost() {
     }
     let section = r.metrics.worst_section_long();
     assert!(
-        section <= 0.2,
+        section <= 0.32,
         "section off by {:.2} % over 0.2 mm",
         section * 100.0
     );
