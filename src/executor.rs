@@ -1094,8 +1094,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 Phase::Settle { cycles } => {
                     self.lost += dv_left;
                     dv_left = Vol::ZERO;
-                    let settled = !self.machine.motion.wait_for_flow_decay
+                    let flow_done = !self.machine.motion.wait_for_flow_decay
                         || (flow.q <= self.machine.q_stop && self.model.commanded() == 0);
+                    // A pause asked for waits here until the flow is at its rest flow
+                    // (never past the settle limit: that is the fault's business).
+                    let settled = flow_done
+                        && (!self.pause.requested
+                            || cycles >= self.settle_limit
+                            || self.rest_reached(flow.q));
                     if settled {
                         self.phase = Phase::Idle;
                         continue;

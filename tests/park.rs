@@ -108,17 +108,7 @@ fn assert_parked(name: &str, cfg: &Config, j: &Job, r: &RunResult, tr: &Trace, n
         if p.at_bead_end {
             continue;
         }
-        assert!(p.seam_measured, "{what}: seam not measured");
-        assert!(
-            p.seam_gap_mm <= 0.1,
-            "{what}: seam gap {:.3} mm",
-            p.seam_gap_mm
-        );
-        assert!(
-            p.seam_section.1 <= 1.3,
-            "{what}: seam section {:.3} S",
-            p.seam_section.1
-        );
+        assert_seam(&what, p);
         gap = gap.max(p.seam_gap_mm);
         sec = (sec.0.min(p.seam_section.0), sec.1.max(p.seam_section.1));
     }

@@ -13,8 +13,8 @@
 //! planned end does. In (a) and (b) the valves shut at the first cycle where neither holds
 //! any more, that is once the switch the boundary needs has taken effect; in (c) the bead
 //! ends as planned and the pause follows at its end. The head is at rest (flow below
-//! `Machine::q_stop`) one tail later, plus half a ramp window on machines with speed
-//! ramps.
+//! `Machine::q_stop` and below 0.5 % of the flow at the request) one tail later, plus
+//! half a ramp window on machines with speed ramps.
 
 use super::park::ParkState;
 use super::{Executor, Phase};
@@ -29,7 +29,7 @@ pub struct PauseInfo {
     pub requested_cycle: u64,
     /// Cycle when the valves were commanded shut for it (or found shut).
     pub shut_cycle: Option<u64>,
-    /// Cycle when the head came to rest (the plan's flow fell below `q_stop`).
+    /// Cycle when the head came to rest (the plan's flow fell below the rest flow).
     pub rest_cycle: Option<u64>,
     /// Plan volume (along the concatenated print paths) of the pause point.
     pub point: Option<Vol>,
@@ -62,6 +62,8 @@ pub(super) struct PauseState<R> {
     pub info: Option<PauseInfo>,
     /// A parked pause's excursion (`park.rs`).
     pub park: ParkState<R>,
+    /// The flow under which the head is at rest for this pause (`rest_flow`).
+    pub q_rest: R,
 }
 
 impl<R: Real> PauseState<R> {
@@ -69,8 +71,21 @@ impl<R: Real> PauseState<R> {
         requested: false,
         info: None,
         park: ParkState::NONE,
+        q_rest: R::ZERO,
     };
 }
+
+/// Share of the flow at the request under which the head is at rest: the tail has landed
+/// once the plant gives less than 1 % of the flow it printed with (issue 23), and the
+/// model's flow is a little off the plant's, so half of that.
+const REST_SHARE: f64 = 0.005;
+/// The rest flow is never below this share of `Machine::q_stop`, so that a pause asked
+/// while the flow is still rising from nothing (a bead's start) still comes to rest one
+/// tail later: the lines decay exponentially, ten times lower is 2.3 time constants more.
+const REST_FLOOR: f64 = 0.1;
+/// Seconds from the request after which a flow under the stop threshold is rest enough:
+/// a bound on the wait should a model's tail level off above the rest flow.
+const REST_WAIT_S: f64 = 1.0;
 
 /// Margin on the predicted tail when deciding whether it clears a boundary or the bead's
 /// end: the tracker extrapolates the last prediction over up to `PREDICT_INTERVAL` cycles.
@@ -98,6 +113,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             return;
         }
         self.pause.requested = true;
+        self.pause.q_rest = self.rest_flow();
         self.pause.info = Some(PauseInfo {
             requested_cycle: self.cycle,
             shut_cycle: (self.model.commanded() == 0).then_some(self.cycle),
@@ -217,12 +233,40 @@ impl<R: Real, const N: usize> Executor<R, N> {
         if self.follow_path(false, q)? {
             return Ok(true);
         }
-        if matches!(self.phase, Phase::Pausing) && q <= self.machine.q_stop && self.acted_shut() {
+        if matches!(self.phase, Phase::Pausing) && self.rest_reached(q) && self.acted_shut() {
             self.phase = Phase::Paused { on_bead: true };
             self.record_rest(false);
             self.park_at_rest();
         }
         Ok(false)
+    }
+
+    /// The flow under which the head is at rest for a pause asked now: `REST_SHARE` of
+    /// the flow now, within `REST_FLOOR` of the stop threshold and the threshold itself
+    /// (0.5 % of top flow: a bead printing at half the top flow would otherwise rest with
+    /// the plant still giving 1 % of its flow).
+    fn rest_flow(&self) -> R {
+        let q_stop = self.machine.q_stop;
+        (R::of(REST_SHARE) * self.model.q())
+            .min(q_stop)
+            .max(R::of(REST_FLOOR) * q_stop)
+    }
+
+    /// The flow `q` is low enough for the head to rest: under the pause's rest flow, or
+    /// under the stop threshold once `REST_WAIT_S` have passed since the request. A bead
+    /// that ends with a pause requested settles to this too, so a pause at a bead's end
+    /// rests as low as one mid-bead.
+    #[inline(never)]
+    pub(super) fn rest_reached(&self, q: R) -> bool {
+        if q <= self.pause.q_rest {
+            return true;
+        }
+        let since = self
+            .pause
+            .info
+            .map_or(0, |i| self.cycle.saturating_sub(i.requested_cycle));
+        let wait = (R::of(REST_WAIT_S) / self.dt).round_i64().max(0) as u64;
+        q <= self.machine.q_stop && since > wait
     }
 
     /// A bound on the tail's volume from now, before any prediction: the fastest flow
@@ -281,7 +325,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             .all(|l| !l.open && l.pending.is_empty())
     }
 
-    /// A requested pause taking effect between beads.
+    /// A requested pause taking effect between beads (a bead's end settles to the pause's
+    /// rest flow first: see `rest_reached`).
     pub(super) fn pause_between_beads(&mut self) {
         self.phase = Phase::Paused { on_bead: false };
         self.record_rest(true);

@@ -130,3 +130,19 @@ pub fn section_bound(m: &dollop::config::Machine<f64, 4>) -> f64 {
     let cost = step * step / (8.0 * a) / dollop::config::SECTION_WINDOW_MM;
     (cost * 1.25).max(0.02)
 }
+
+/// Issue 23's seam bounds for a mid-bead pause: measured, no uncovered stretch over
+/// 0.1 mm, and the section over 0.2 mm at the seam within 1.3 S.
+pub fn assert_seam(what: &str, p: &dollop_sim::PauseRecord) {
+    assert!(p.seam_measured, "{what}: seam not measured");
+    assert!(
+        p.seam_gap_mm <= 0.1,
+        "{what}: seam gap {:.3} mm",
+        p.seam_gap_mm
+    );
+    assert!(
+        p.seam_section.1 <= 1.3,
+        "{what}: seam section {:.3} S",
+        p.seam_section.1
+    );
+}

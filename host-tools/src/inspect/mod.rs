@@ -14,12 +14,12 @@ pub mod measure;
 pub mod photo;
 pub mod picture;
 pub mod register;
+mod stages;
 pub mod suggest;
 pub mod synth;
 
 pub use error::InspectError;
 
-use classify::PLATE;
 use design::Plan;
 use dollop::Command;
 use frame::Frame;
@@ -394,150 +394,25 @@ pub fn inspect_photo(
     if u64::from(fw) * u64::from(fh) > 100_000_000 {
         return Err(InspectError::FrameTooLarge { w: fw, h: fh });
     }
-    let by_markers = if o.use_markers {
-        markers::register(&photo, &plan, &frame)
-    } else {
-        None
-    };
-    let (corners, registration) = match by_markers {
-        Some(c) => (c, Registration::Markers),
-        None => (
-            register::corners(&photo.print).ok_or_else(|| {
-                bad("the print's outline is not a quadrilateral that can be registered; photograph the whole print from above".into())
-            })?,
-            if plan.markers.is_some() {
-                Registration::OutlineMarkersNotFound
-            } else {
-                Registration::Outline
-            },
-        ),
-    };
-    // The markers leave no turn to decide.
-    let turns = if registration == Registration::Markers {
-        0..1
-    } else {
-        0..4
-    };
-    // Colours: k-means over the print's pixels (a sample of at most 200 000).
-    let every = ((photo.print_px / 200_000) as usize).max(1);
-    let samples: Vec<[f32; 3]> = photo
-        .rgb
-        .iter()
-        .zip(photo.print.pixels())
-        .filter(|(_, m)| m[0] > 0)
-        .map(|(c, _)| *c)
-        .step_by(every)
-        .collect();
-    let palette = classify::kmeans_best(&samples, k, 7, KMEANS_RESTARTS);
-    check_colour_count(&samples, &palette, k).map_err(bad)?;
+    // Register -> classify -> refine -> measure (see `stages`).
+    let at = stages::register(&photo, &plan, &frame, o.use_markers).ok_or_else(|| {
+        bad("the print's outline is not a quadrilateral that can be registered; photograph the whole print from above".into())
+    })?;
+    let palette = stages::palette(&photo, k).map_err(bad)?;
     let design = measure::paint(&plan, &frame);
-    // The turn whose colours agree best with the design.
-    // (agreement, turn, labels, cluster names, picture) of the best turn so far.
-    type Turn = (f64, usize, Vec<u8>, Vec<u8>, image::RgbImage);
-    let mut best: Option<Turn> = None;
-    for turn in turns {
-        let Some(proj) = register::projection(corners, &frame, turn) else {
-            continue;
-        };
-        let (rgb, pic) = register::rectify(&photo, &frame, proj, None);
-        let clusters: Vec<u8> = rgb
-            .iter()
-            .map(|&c| classify::label(&palette.centres, c).map_or(PLATE, |j| j as u8))
-            .collect();
-        let (names, agree) = classify::name_clusters(&clusters, &design, &plan.materials);
-        if best.as_ref().is_none_or(|b| agree > b.0) {
-            let seen = clusters
-                .iter()
-                .map(|&c| if c == PLATE { PLATE } else { names[c as usize] })
-                .collect();
-            best = Some((agree, turn, seen, names, pic));
-        }
-    }
-    let (_, turn, mut seen, names, mut rectified) =
-        best.ok_or_else(|| bad("the print's corners do not define a perspective".into()))?;
-    // The outline registers the print's edge, which sits where the outer beads' width
-    // puts it: refine from the boundaries (see `measure::drift`), twice.
-    let label = |rgb: &[[f32; 3]]| -> Vec<u8> {
-        rgb.iter()
-            .map(|&c| classify::label(&palette.centres, c).map_or(PLATE, |j| names[j]))
-            .collect()
-    };
-    let mut targets = frame.corners();
-    let design_corners = [
-        [plan.lo[0], plan.hi[1]],
-        [plan.hi[0], plan.hi[1]],
-        [plan.hi[0], plan.lo[1]],
-        [plan.lo[0], plan.lo[1]],
-    ];
-    // Along the path only the boundaries show a misregistration; across it the beads'
-    // centre lines do (rows all along x leave y to them). The outline needs them: its
-    // corners sit where the outer beads' width puts them. The markers' own centre lines
-    // register across the path already, and on the calibration pattern (rows of
-    // unequal width after every switch) the beads' centre lines measured worse.
-    let drift_of = |seen: &[u8]| {
-        let found = measure::boundaries(&plan, &frame, seen);
-        let sides = if registration == Registration::Markers {
-            Vec::new()
-        } else {
-            measure::edges(&plan, &frame, &design, seen, EDGE_EVERY_MM)
-        };
-        (measure::drift(&plan, &found, &sides, o.px_per_mm), found)
-    };
-    let mut proj_now = register::projection(corners, &frame, turn);
-    for _ in 0..2 {
-        let (d, _) = drift_of(&seen);
-        for k in 0..4 {
-            // The content for design corner q shows at q + d(q): aim the photo's corner
-            // that much the other way (frame y runs down).
-            let e = d.at(design_corners[k]);
-            targets[k] = [
-                targets[k][0] - e[0] * frame.px_per_mm,
-                targets[k][1] + e[1] * frame.px_per_mm,
-            ];
-        }
-        let Some(proj) = register::projection_to(corners, targets, turn) else {
-            break;
-        };
-        let (rgb, pic) = register::rectify(&photo, &frame, proj, None);
-        seen = label(&rgb);
-        rectified = pic;
-        proj_now = Some(proj);
-    }
-    // What the corners cannot take out (a perspective the four corners misjudged) is
-    // taken out of the offsets themselves.
-    let (residual, mut found) = drift_of(&seen);
-    for f in &mut found {
-        let b = plan.boundaries[f.index];
-        // Beside a turn, seen where it landed (on the stretch between rows, or the next
-        // row), along the path there.
-        let (p, u) = if f.beside_turn {
-            plan.beads[b.bead].at(b.s + f.offset)
-        } else {
-            (b.at, plan.beads[b.bead].at(b.s).1)
-        };
-        f.offset -= residual.along(p, u);
-    }
-    // The same residual, taken out of the labels: the photo sampled once more, straight
-    // into the frame, each frame pixel where its content shows.
-    if let Some(proj) = proj_now {
-        let (rgb, pic) = register::rectify(&photo, &frame, proj, Some(&residual));
-        seen = label(&rgb);
-        rectified = pic;
-    }
+    let turned = stages::classify(&photo, &frame, at, &palette, &design, &plan.materials)
+        .ok_or_else(|| bad("the print's corners do not define a perspective".into()))?;
+    let turn = turned.turn;
+    let stages::Refined {
+        seen,
+        rectified,
+        found,
+        residual,
+        names,
+    } = stages::refine(&photo, &plan, &frame, &design, &palette, at, turned);
     let pattern_error = measure::pattern_error(&design, &seen);
     let moved = measure::moved(&plan, &found);
-    // Only where paste shows: gaps between thin beads are not another job.
-    let unexplained = {
-        let want = measure::paint(&moved, &frame);
-        let (mut n, mut bad) = (0u64, 0u64);
-        for (&d, &s) in want.iter().zip(&seen) {
-            if d != PLATE && s != PLATE {
-                n += 1;
-                bad += u64::from(d != s);
-            }
-        }
-        bad as f64 / n.max(1) as f64
-    };
+    let unexplained = stages::unexplained(&moved, &frame, &seen);
     if unexplained > o.max_unexplained {
         return Err(bad(format!(
             "the print does not match the job: even with its boundaries where they were found, {:.0} % of the paste shows another material than the design (over {:.0} %); is this the photo of this job?",
@@ -552,30 +427,10 @@ pub fn inspect_photo(
             plan.boundaries.len()
         )));
     }
-    let widths = measure::widths(&plan, &frame, &seen, 0.5);
-    let width_by_material = measure::width_by_material(&plan, &moved, &found, &widths);
-    let colours = names
-        .iter()
-        .zip(&palette.centres)
-        .map(|(&m, c)| {
-            (
-                m,
-                std::array::from_fn(|i| (c[i] * photo.plate[i]).clamp(0.0, 1.0)),
-            )
-        })
-        .collect();
-    let photo_px_per_mm = {
-        let area_px = (0..4)
-            .map(|i| {
-                let (a, b) = (corners[i], corners[(i + 1) % 4]);
-                a[0] * b[1] - b[0] * a[1]
-            })
-            .sum::<f64>()
-            .abs()
-            / 2.0;
-        let area_mm = (plan.hi[0] - plan.lo[0]) * (plan.hi[1] - plan.lo[1]);
-        (area_px / area_mm.max(1e-9)).sqrt()
-    };
+    let (widths, width_by_material) = stages::widths(&plan, &moved, &frame, &seen, &found);
+    let colours = stages::colours(&photo, &palette, &names);
+    let photo_px_per_mm = stages::photo_px_per_mm(at.corners, &plan);
+    let (corners, registration) = (at.corners, at.registration);
     Ok(Inspection {
         path: path.to_path_buf(),
         plan,

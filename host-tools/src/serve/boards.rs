@@ -1001,7 +1001,7 @@ mod tests {
             }
         };
         until(&mut w, "printing", &|v| {
-            v.progress > 0.2 && v.run == "Printing"
+            v.progress > 0.2 && v.run == Some(RunState::Printing)
         });
         w.handle(Order::Park).expect("parks");
         until(&mut w, "parked", &|v| {

@@ -222,12 +222,14 @@ fn pause_lines(s: &mut String, r: &RunResult, bounds: &Bounds) {
 /// A parked pause's lines: the excursion and its times.
 fn park_lines(s: &mut String, k: &dollop_sim::ParkRecord) {
     let t = |x: Option<f64>| x.map_or("never".to_string(), |x| format!("{x:.4} s"));
+    // A coordinate a hair below zero would print as -0.000.
+    let mm = |v: f64| if v.abs() < 5e-4 { 0.0 } else { v };
     s.push_str(&format!(
         "  park            left the pause point at {:.4} s, Z up {:.3} mm, to ({:.3}, {:.3}) mm by {} (plan), back on the point at {} ({:.3} s away)\n",
         k.t_left,
         k.lift_mm,
-        k.far_xy[0],
-        k.far_xy[1],
+        mm(k.far_xy[0]),
+        mm(k.far_xy[1]),
         t(k.t_parked),
         t(k.t_back),
         k.t_back.map_or(0.0, |b| b - k.t_left)

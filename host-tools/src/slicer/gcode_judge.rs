@@ -567,6 +567,117 @@ struct StepLanded {
     changes: Vec<(f64, u8)>,
 }
 
+impl StepLanded {
+    /// Runs `plant` to `t1` (steps of `h`), acting on the valve events of `events` from
+    /// `*ev` on that fall by then, and keeps what landed over the step.
+    fn advance(
+        &mut self,
+        plant: &mut Plant,
+        events: &[(f64, usize, bool)],
+        ev: &mut usize,
+        t1: f64,
+        h: f64,
+    ) {
+        self.volume = 0.0;
+        self.changes.clear();
+        while *ev < events.len() && events[*ev].0 <= t1 {
+            let (te, inlet, open) = events[*ev];
+            if te > plant.time() {
+                let l = plant.advance(te, h);
+                self.changes
+                    .extend(l.changes.iter().map(|&(x, m)| (self.volume + x, m)));
+                self.volume += l.volume;
+            }
+            plant.command(inlet, open);
+            *ev += 1;
+        }
+        let l = plant.advance(t1, h);
+        self.changes
+            .extend(l.changes.iter().map(|&(x, m)| (self.volume + x, m)));
+        self.volume += l.volume;
+    }
+}
+
+/// The section windows of the bead in progress, closed into the verdict's figures at
+/// the bead's end.
+struct Sections {
+    /// Bead section the G-code means, mm^2.
+    area: f64,
+    /// Windows of the bead in progress: (volume, length, where).
+    windows: Vec<(f64, f64, [f64; 3])>,
+    /// The window filling: (volume, length).
+    cur: (f64, f64),
+}
+
+impl Sections {
+    /// Adds a step's `volume` over `ds` of bead, closing the window at `at` when full.
+    fn add(&mut self, volume: f64, ds: f64, at: [f64; 3]) {
+        self.cur.0 += volume;
+        self.cur.1 += ds;
+        if self.cur.1 >= SECTION_MM {
+            self.windows.push((self.cur.0, self.cur.1, at));
+            self.cur = (0.0, 0.0);
+        }
+    }
+
+    /// Ends the bead at `at`: its last window (merged into the one before when shorter
+    /// than half of `SECTION_MM`), and every window's section / S into `v`.
+    fn close_bead(&mut self, at: [f64; 3], v: &mut Verdict) {
+        let cur = self.cur;
+        if cur.1 > 0.0 {
+            if cur.1 < 0.5 * SECTION_MM {
+                if let Some(last) = self.windows.last_mut() {
+                    last.0 += cur.0;
+                    last.1 += cur.1;
+                } else if cur.1 >= 0.25 * SECTION_MM {
+                    self.windows.push((cur.0, cur.1, at));
+                }
+            } else {
+                self.windows.push((cur.0, cur.1, at));
+            }
+        }
+        for &(vol, len, at) in self.windows.iter() {
+            let r = vol / (self.area * len);
+            if (r - 1.0).abs() > v.worst_section {
+                v.worst_section = (r - 1.0).abs();
+                v.worst_section_at = at;
+            }
+            v.section_range = (v.section_range.0.min(r), v.section_range.1.max(r));
+            v.windows += 1;
+        }
+        self.windows.clear();
+        self.cur = (0.0, 0.0);
+    }
+}
+
+/// The head along the timeline's blocks, time running forward.
+struct Head<'t> {
+    blocks: &'t [Block],
+    /// Where it stands before the first block.
+    start: [f64; 3],
+    /// The block it is in.
+    bi: usize,
+}
+
+impl Head<'_> {
+    /// (path length of the beads so far, position) at `t`.
+    fn at(&mut self, t: f64) -> (f64, [f64; 3]) {
+        while self.bi + 1 < self.blocks.len() && self.blocks[self.bi].end() <= t {
+            self.bi += 1;
+        }
+        let Some(b) = self.blocks.get(self.bi) else {
+            return (0.0, self.start);
+        };
+        let d = b.d_at(t);
+        let p = [
+            b.from[0] + b.dir[0] * d,
+            b.from[1] + b.dir[1] * d,
+            b.from[2] + b.dir[2] * d,
+        ];
+        (b.s0 + if b.travel { 0.0 } else { d }, p)
+    }
+}
+
 /// Runs `gcode` as the firmware model would and measures it against `design`.
 pub fn judge(
     gcode: &str,
@@ -587,98 +698,71 @@ pub fn judge(
         .unwrap_or(
             setup.config.channel.line_pitch_mm as f64 * setup.config.channel.layer_height_mm as f64,
         );
-    let h = 1e-4;
-    // Let the last of the flow land after the end (5 s covers any config's decay).
-    let t_stop = tl.end + 5.0;
-    let mut ev = 0usize;
-    let mut bi = 0usize;
-    let mut landed_at: Vec<(f64, u8)> = Vec::new();
-    let mut in_bead = false;
-    let mut standing_vol = 0.0f64;
-    // Windows of the bead in progress: (volume, length, where).
-    let mut windows: Vec<(f64, f64, [f64; 3])> = Vec::new();
-    let mut cur = (0.0f64, 0.0f64);
     let mut v = Verdict {
         section_range: (f64::INFINITY, f64::NEG_INFINITY),
         full_stops: tl.full_stops,
         time_s: tl.end,
         ..Verdict::default()
     };
-    let close_bead = |windows: &mut Vec<(f64, f64, [f64; 3])>,
-                      cur: &mut (f64, f64),
-                      at: [f64; 3],
-                      v: &mut Verdict| {
-        if cur.1 > 0.0 {
-            if cur.1 < 0.5 * SECTION_MM {
-                if let Some(last) = windows.last_mut() {
-                    last.0 += cur.0;
-                    last.1 += cur.1;
-                } else if cur.1 >= 0.25 * SECTION_MM {
-                    windows.push((cur.0, cur.1, at));
-                }
-            } else {
-                windows.push((cur.0, cur.1, at));
-            }
-        }
-        for &(vol, len, at) in windows.iter() {
-            let r = vol / (area * len);
-            if (r - 1.0).abs() > v.worst_section {
-                v.worst_section = (r - 1.0).abs();
-                v.worst_section_at = at;
-            }
-            v.section_range = (v.section_range.0.min(r), v.section_range.1.max(r));
-            v.windows += 1;
-        }
-        windows.clear();
-        *cur = (0.0, 0.0);
+    let landed_at = land(&tl, &mut plant, area, setup.start, &mut v);
+    if v.windows == 0 {
+        v.section_range = (1.0, 1.0);
+    }
+    v.landed = landed_at.len();
+    v.boundaries = design.len();
+    let errors = boundary_errors(&tl, &landed_at, design);
+    if !errors.is_empty() {
+        let n = errors.len();
+        v.worst_mm = errors[n - 1];
+        v.mean_mm = errors.iter().sum::<f64>() / n as f64;
+        let k = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
+        v.p95_mm = errors[k];
+    }
+    Ok(v)
+}
+
+/// Runs the plant along the timeline `tl` (head from `start`, beads of section `area`)
+/// until the last of the flow has landed: the sections, the changes off the beads and
+/// the volume landed there go into `v`; returns where each material change landed
+/// (path length of the beads, mm; material).
+fn land(
+    tl: &Timeline,
+    plant: &mut Plant,
+    area: f64,
+    start: [f64; 3],
+    v: &mut Verdict,
+) -> Vec<(f64, u8)> {
+    let h = 1e-4;
+    // Let the last of the flow land after the end (5 s covers any config's decay).
+    let t_stop = tl.end + 5.0;
+    let mut ev = 0usize;
+    let mut landed_at: Vec<(f64, u8)> = Vec::new();
+    let mut in_bead = false;
+    let mut standing_vol = 0.0f64;
+    let mut sections = Sections {
+        area,
+        windows: Vec::new(),
+        cur: (0.0, 0.0),
     };
-    // The head at a time: (path length of the beads so far, position).
-    let head = |bi: &mut usize, t: f64| -> (f64, [f64; 3]) {
-        while *bi + 1 < tl.blocks.len() && tl.blocks[*bi].end() <= t {
-            *bi += 1;
-        }
-        let Some(b) = tl.blocks.get(*bi) else {
-            return (0.0, setup.start);
-        };
-        let d = b.d_at(t);
-        let p = [
-            b.from[0] + b.dir[0] * d,
-            b.from[1] + b.dir[1] * d,
-            b.from[2] + b.dir[2] * d,
-        ];
-        (b.s0 + if b.travel { 0.0 } else { d }, p)
+    let mut head = Head {
+        blocks: &tl.blocks,
+        start,
+        bi: 0,
     };
     let mut t = 0.0f64;
-    let (mut s_prev, _) = head(&mut bi, 0.0);
+    let (mut s_prev, _) = head.at(0.0);
     let mut step = StepLanded::default();
     while t < t_stop {
         let t1 = (t + h).min(t_stop);
-        step.volume = 0.0;
-        step.changes.clear();
-        while ev < tl.events.len() && tl.events[ev].0 <= t1 {
-            let (te, inlet, open) = tl.events[ev];
-            if te > plant.time() {
-                let l = plant.advance(te, h);
-                step.changes
-                    .extend(l.changes.iter().map(|&(x, m)| (step.volume + x, m)));
-                step.volume += l.volume;
-            }
-            plant.command(inlet, open);
-            ev += 1;
-        }
-        let l = plant.advance(t1, h);
-        step.changes
-            .extend(l.changes.iter().map(|&(x, m)| (step.volume + x, m)));
-        step.volume += l.volume;
-        let blk_before = bi;
-        let (s1, p1) = head(&mut bi, t1);
+        step.advance(plant, &tl.events, &mut ev, t1, h);
+        let blk_before = head.bi;
+        let (s1, p1) = head.at(t1);
         // A G1 block starts a bead; a G0 block ends it.
         if t1 <= tl.end {
-            for k in blk_before..=bi {
-                let b = &tl.blocks[k];
+            for b in &tl.blocks[blk_before..=head.bi] {
                 if b.len > 0.0 {
                     if b.travel && in_bead {
-                        close_bead(&mut windows, &mut cur, p1, &mut v);
+                        sections.close_bead(p1, v);
                         in_bead = false;
                     } else if !b.travel {
                         in_bead = true;
@@ -711,22 +795,20 @@ pub fn judge(
             } else {
                 standing_vol += step.volume;
             }
-            cur.0 += step.volume;
-            cur.1 += ds;
-            if cur.1 >= SECTION_MM {
-                windows.push((cur.0, cur.1, p1));
-                cur = (0.0, 0.0);
-            }
+            sections.add(step.volume, ds, p1);
         } else {
             v.off_path_mm3 += step.volume;
         }
         s_prev = s1;
         t = t1;
     }
-    close_bead(&mut windows, &mut cur, [f64::NAN; 3], &mut v);
-    if v.windows == 0 {
-        v.section_range = (1.0, 1.0);
-    }
+    sections.close_bead([f64::NAN; 3], v);
+    landed_at
+}
+
+/// Per design boundary, sorted: |landed - design| along the path, mm, against the
+/// nearest change to the same material in `landed_at`.
+fn boundary_errors(tl: &Timeline, landed_at: &[(f64, u8)], design: &[DesignBoundary]) -> Vec<f64> {
     // The path the G1 moves traced, for placing the design's points on it.
     let path: Vec<&Block> = tl
         .blocks
@@ -734,14 +816,12 @@ pub fn judge(
         .filter(|b| !b.travel && b.len > 0.0)
         .collect();
     let mut by_material: Vec<Vec<f64>> = vec![Vec::new(); 256];
-    for &(s, m) in &landed_at {
+    for &(s, m) in landed_at {
         by_material[m as usize].push(s);
     }
     for list in by_material.iter_mut() {
         list.sort_by(f64::total_cmp);
     }
-    v.landed = landed_at.len();
-    v.boundaries = design.len();
     let mut errors = Vec::with_capacity(design.len());
     let mut from = 0usize;
     for d in design {
@@ -758,14 +838,7 @@ pub fn judge(
         errors.push(near);
     }
     errors.sort_by(f64::total_cmp);
-    if !errors.is_empty() {
-        let n = errors.len();
-        v.worst_mm = errors[n - 1];
-        v.mean_mm = errors.iter().sum::<f64>() / n as f64;
-        let k = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
-        v.p95_mm = errors[k];
-    }
-    Ok(v)
+    errors
 }
 
 /// How close the path must pass a design point to be taken as passing it, mm (corner

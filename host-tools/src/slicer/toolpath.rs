@@ -4,7 +4,7 @@
 //! layers stacked. Material boundaries stay exactly where the design has them: the
 //! firmware keys valves to volume, so no advance is applied here. Encoding is `job_file`'s.
 
-use super::design::{Design, Run, TOUCH_MM};
+use super::design::{Design, Layer, Run, TOUCH_MM};
 use super::error::SliceError;
 use dollop::config::Config;
 use dollop::{Command, Machine};
@@ -153,19 +153,45 @@ struct Span {
     x1: f64,
 }
 
-/// Plans the job for `design` on `machine` (validated from `config`).
-pub fn plan(
+/// Where the job sits on the plate: the design's lower-left corner, the priming bead and
+/// the layers' heights.
+#[derive(Clone, Copy, Debug)]
+struct Placement {
+    /// The design's lower-left corner, mm.
+    ox: f64,
+    oy: f64,
+    /// The design's height, mm.
+    h: f64,
+    /// Row pitch, mm.
+    pitch: f64,
+    /// Priming bead: length, its row and its left end, mm.
+    prime: f64,
+    prime_y: f64,
+    px0: f64,
+    /// First layer's nozzle height and layer height, mm.
+    z_first: f64,
+    layer_h: f64,
+}
+
+impl Placement {
+    /// Height of layer `k`, mm.
+    fn z(&self, k: usize) -> f64 {
+        self.z_first.max(self.layer_h * 0.5) + k as f64 * self.layer_h
+    }
+}
+
+/// Places `design` on `machine`: refuses a priming bead shorter than twice the transit
+/// and a job larger than the travel.
+fn place(
     design: &Design,
     config: &Config,
     machine: &Machine<f64, 4>,
     opts: &PathOptions,
-) -> Result<Toolpath, SliceError> {
-    let what = design.name.clone();
+) -> Result<Placement, SliceError> {
     let pitch = design.pitch_mm;
     let [w, h] = design.size_mm;
     let layer_h = config.channel.layer_height_mm as f64;
     let z_first = config.channel.nozzle_height_mm as f64;
-    let z_of = |k: usize| z_first.max(layer_h * 0.5) + k as f64 * layer_h;
     let lo = machine.motion.min_mm;
     let hi = machine.motion.max_mm;
     let transit = transit_mm(machine);
@@ -180,81 +206,140 @@ pub fn plan(
     };
     let gap = (3.0 * pitch).max(2.0);
     let half = pitch / 2.0;
-    let layers_n = design.layers.len();
-    let top_z = z_of(layers_n.saturating_sub(1));
+    let mut at = Placement {
+        ox: 0.0,
+        oy: 0.0,
+        h,
+        pitch,
+        prime,
+        prime_y: 0.0,
+        px0: 0.0,
+        z_first,
+        layer_h,
+    };
+    let top_z = at.z(design.layers.len().saturating_sub(1));
     let footprint = [w.max(prime) + pitch, h + gap + pitch, top_z];
     let span = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
     if footprint[0] > span[0] || footprint[1] > span[1] || top_z > hi[2] {
         return Err(SliceError::TooLarge {
-            what,
+            what: design.name.clone(),
             size: footprint,
             travel: span,
         });
     }
     // Placement: the design's lower-left corner, and the priming bead's row below it (or
     // above it when an explicit origin leaves no room below).
-    let (ox, oy) = match opts.origin_mm {
+    (at.ox, at.oy) = match opts.origin_mm {
         Some([x, y]) => (x, y),
         None => (
             (lo[0] + hi[0] - w) / 2.0,
             (lo[1] + hi[1] - (h + gap)) / 2.0 + gap,
         ),
     };
-    let prime_y = if oy - gap - half >= lo[1] {
-        oy - gap
+    at.prime_y = if at.oy - gap - half >= lo[1] {
+        at.oy - gap
     } else {
-        oy + h + gap
+        at.oy + h + gap
     };
     // The bead runs left to right and ends below the design's first row start, so the
     // first travel is short.
-    let first_x = first_start(design).map_or(ox, |x| x + ox);
-    let px0 = (first_x - prime).clamp(lo[0] + half, (hi[0] - half - prime).max(lo[0] + half));
+    let first_x = first_start(design).map_or(at.ox, |x| x + at.ox);
+    at.px0 = (first_x - prime).clamp(lo[0] + half, (hi[0] - half - prime).max(lo[0] + half));
+    Ok(at)
+}
 
+/// Plans the job for `design` on `machine` (validated from `config`).
+pub fn plan(
+    design: &Design,
+    config: &Config,
+    machine: &Machine<f64, 4>,
+    opts: &PathOptions,
+) -> Result<Toolpath, SliceError> {
+    let at = place(design, config, machine, opts)?;
     let mut e = Emitter {
         cmds: Vec::new(),
         at: [0; 3],
         stats: PathStats::default(),
         in_bead: false,
     };
-    let connect = opts.connect_mm.unwrap_or(2.0 * pitch);
+    let connect = opts.connect_mm.unwrap_or(2.0 * at.pitch);
     if design.is_empty() {
         return Err(SliceError::EmptyDesign {
-            what,
+            what: design.name.clone(),
             why: "no layer prints anything".into(),
         });
     }
     // Primed with material 0 for now; set to the design's first material below.
     let initial = 0;
-    let start = [um(px0), um(prime_y), um(z_of(0))];
+    let start = [um(at.px0), um(at.prime_y), um(at.z(0))];
     e.at = start;
-    e.travel_to(px0, prime_y, z_of(0));
-    e.print_to(px0 + prime, prime_y, initial);
-    e.stats.prime_mm = prime;
+    e.travel_to(at.px0, at.prime_y, at.z(0));
+    e.print_to(at.px0 + at.prime, at.prime_y, initial);
+    e.stats.prime_mm = at.prime;
 
-    let mut spans: Vec<Span> = Vec::new();
-    let mut row_spans: Vec<(usize, usize)> = Vec::new();
-    let mut done: Vec<bool> = Vec::new();
+    let mut rows = Rows::default();
     for (k, layer) in design.layers.iter().enumerate() {
         if layer.is_empty() {
             continue;
         }
         e.stats.layers += 1;
-        let z = z_of(k);
+        let z = at.z(k);
         if k > 0 || e.at[2] != um(z) {
             e.layer(z);
         }
+        rows.print_layer(&mut e, layer, z, &at, connect);
+    }
+    let initial = finish(&mut e, machine.motion.max_mm[2], initial);
+    let tp = Toolpath {
+        commands: e.cmds,
+        start_um: start,
+        initial_material: initial,
+        stats: e.stats,
+    };
+    check_travel(&tp, machine, &design.name)?;
+    Ok(tp)
+}
+
+/// A layer's rows as spans of touching runs, kept across layers to reuse their memory.
+#[derive(Default)]
+struct Rows {
+    spans: Vec<Span>,
+    /// Per row in printing order: its spans' range in `spans`.
+    row_spans: Vec<(usize, usize)>,
+    /// Per span: printed already.
+    done: Vec<bool>,
+}
+
+impl Rows {
+    /// Prints `layer` at height `z`: beads started at the lowest unfinished row's span
+    /// nearest the head, each continued into the next row while a span there starts
+    /// within `connect`.
+    fn print_layer(
+        &mut self,
+        e: &mut Emitter,
+        layer: &Layer,
+        z: f64,
+        at: &Placement,
+        connect: f64,
+    ) {
+        let Rows {
+            spans,
+            row_spans,
+            done,
+        } = self;
+        let (ox, oy, pitch) = (at.ox, at.oy, at.pitch);
         spans.clear();
         row_spans.clear();
         // Rows are taken in order from the end nearer the head, so a layer starts where
         // the last one ended instead of travelling back across it.
         let rows = layer.rows();
         let head_y = e.at[1] as f64 * 1e-3;
-        let top_down = rows > 1 && (head_y - (oy + h)).abs() < (head_y - oy).abs();
+        let top_down = rows > 1 && (head_y - (oy + at.h)).abs() < (head_y - oy).abs();
         let actual = |i: usize| if top_down { rows - 1 - i } else { i };
         for i in 0..rows {
             let r = actual(i);
             let first = spans.len();
-            split_spans(layer.row(r), &mut spans);
+            split_spans(layer.row(r), spans);
             row_spans.push((first, spans.len()));
         }
         done.clear();
@@ -292,7 +377,7 @@ pub fn plan(
             loop {
                 done[i] = true;
                 let runs = &layer.row(actual(r))[spans[i].a..spans[i].b];
-                emit_span(&mut e, runs, forward, ox, y_of(r));
+                emit_span(e, runs, forward, ox, y_of(r));
                 let end_x = if forward { spans[i].x1 } else { spans[i].x0 };
                 // Continue into the next row when a span there starts close by.
                 let Some(&(n0, n1)) = row_spans.get(r + 1) else {
@@ -318,8 +403,14 @@ pub fn plan(
             }
         }
     }
+}
+
+/// Ends the job: lifts clear of the print (up to 5 mm, as far as `top_mm` allows),
+/// primes with the design's first material (else `initial`), which it returns, and
+/// counts the switches.
+fn finish(e: &mut Emitter, top_mm: f64, initial: u8) -> u8 {
     // Lift clear of the print at the end, as far as the travel allows (up to 5 mm).
-    let lift = (hi[2] - e.at[2] as f64 * 1e-3).min(5.0);
+    let lift = (top_mm - e.at[2] as f64 * 1e-3).min(5.0);
     if lift > 0.01 {
         e.layer(e.at[2] as f64 * 1e-3 + lift);
     }
@@ -342,14 +433,7 @@ pub fn plan(
             last = material;
         }
     }
-    let tp = Toolpath {
-        commands: e.cmds,
-        start_um: start,
-        initial_material: initial,
-        stats: e.stats,
-    };
-    check_travel(&tp, machine, &what)?;
-    Ok(tp)
+    initial
 }
 
 /// Left end of the first run of the lowest printed row of the first printed layer.
