@@ -1421,11 +1421,31 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// (`crate::switch_window`); the machine's window where those do not say.
     #[inline(never)]
     fn size_ramp(&mut self, opening: Option<u8>) {
+        let (head, inv_s) = (self.head, self.inv_s);
+        let seg = |i: &Item<R>| match i {
+            Item::Seg(s) => Some(*s),
+            _ => None,
+        };
+        let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
+        // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
+        let turns = (self.plan.iter().map_while(seg))
+            .zip(self.plan.iter().skip(1).map_while(seg))
+            .take_while(|(a, _)| !a.last)
+            .filter_map(|(a, b)| {
+                let f = a.fillet?;
+                Some(crate::switch_window::Turn {
+                    at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
+                    radius: f.radius.to_f32(),
+                    from: f2(a.dir),
+                    to: f2(b.dir),
+                })
+            });
         let h = crate::switch_window::switch_half(
             &self.machine,
             &self.model,
             self.model.commanded(),
             opening,
+            turns,
         )
         .unwrap_or(self.machine.ramp_cycles / 2);
         self.ramp.set_goal(h);

@@ -26,6 +26,11 @@ pub const STEP_CAPACITY: usize = 4;
 /// motion's read up to 2 either way.
 const STEP_MIN: i32 = 4;
 
+impl StepRamps {
+    /// The largest second difference (position units a cycle^2) that is no step.
+    pub const UNSEEN: i32 = STEP_MIN;
+}
+
 /// Frames within which a second step joins the previous one's window (a step the flow
 /// model spreads over two cycles).
 const JOIN_FRAMES: u32 = 2;
