@@ -270,6 +270,9 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// The steps of the plan's velocity the ramp window re-ramps over their own windows.
     step_ramps: StepRamps,
     ramped: bool,
+    /// Ramped, and the valves' flow changes are first-order ones that
+    /// `crate::switch_window` sizes a window for at each decision.
+    sizing: bool,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -319,6 +322,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             ramp: Ramp::new(),
             step_ramps: StepRamps::new(),
             ramped: false,
+            sizing: false,
         }
     }
 
@@ -363,6 +367,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.plunger_vol = [Vol::ZERO; N];
         self.plunger_steps = [0; N];
         self.ramped = self.machine.ramp_cycles > 1;
+        self.sizing = self.ramped
+            && self
+                .machine
+                .inlets
+                .iter()
+                .all(|i| i.syringe.is_none() && i.rise_s > R::ZERO && i.decay_s > R::ZERO);
         self.hold_ramp();
     }
 
@@ -909,9 +919,21 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// (`last_dv` sums a catch-up's cycles). Out of line, as `ramped_report`.
     #[inline(never)]
     fn push_frame(&mut self, dv: Vol) {
+        if self.ramp.narrowing() {
+            // In tail position: the usual path keeps its registers.
+            return self.push_frame_narrow(dv);
+        }
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         self.ramp.push(f, &mut self.step_ramps);
+    }
+
+    /// `push_frame` while a valve decision's window narrows the ramp's mean.
+    #[inline(never)]
+    fn push_frame_narrow(&mut self, dv: Vol) {
+        let mut f = self.frame();
+        f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.ramp.push_narrow(f, &mut self.step_ramps);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
@@ -1062,6 +1084,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
                 self.want = Some(self.entry_material);
+                if self.sizing {
+                    self.size_ramp(Some(self.entry_material));
+                }
                 self.model.command(1 << self.entry_material);
                 self.stop.reset();
                 self.switch.reset();
@@ -1226,6 +1251,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     self.switch.work(&self.model);
                 }
                 if due {
+                    if self.sizing {
+                        self.size_ramp(Some(m));
+                    }
                     self.model.command(1 << m);
                     self.want = Some(m);
                     self.entry_material = m;
@@ -1244,6 +1272,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     .answer(&self.model, Goal::Stop)
                     .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
                 if due {
+                    if self.sizing {
+                        self.size_ramp(None);
+                    }
                     self.model.command(0);
                     self.want = None;
                     self.phase = Phase::Print { stopping: true };
@@ -1254,6 +1285,41 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         Ok(())
+    }
+
+    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
+    /// it opens, none to stop): once per decision, from the channel's contents now
+    /// (`crate::switch_window`); the machine's window where those do not say.
+    #[inline(never)]
+    fn size_ramp(&mut self, opening: Option<u8>) {
+        let (head, inv_s) = (self.head, self.inv_s);
+        let seg = |i: &Item<R>| match i {
+            Item::Seg(s) => Some(*s),
+            _ => None,
+        };
+        let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
+        // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
+        let turns = (self.plan.iter().map_while(seg))
+            .zip(self.plan.iter().skip(1).map_while(seg))
+            .take_while(|(a, _)| !a.last)
+            .filter_map(|(a, b)| {
+                let f = a.fillet?;
+                Some(crate::switch_window::Turn {
+                    at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
+                    radius: f.radius.to_f32(),
+                    from: f2(a.dir),
+                    to: f2(b.dir),
+                })
+            });
+        let h = crate::switch_window::switch_half(
+            &self.machine,
+            &self.model,
+            self.model.commanded(),
+            opening,
+            turns,
+        )
+        .unwrap_or(self.machine.ramp_cycles / 2);
+        self.ramp.set_goal(h);
     }
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs

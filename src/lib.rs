@@ -22,6 +22,7 @@ pub mod rheology;
 pub mod state;
 pub mod step_gen;
 pub mod step_ramps;
+pub mod switch_window;
 pub mod vol;
 pub mod wire;
 
