@@ -112,7 +112,8 @@ pub struct Args {
     /// Lower-left corner of the design on the plate, mm [default: centred].
     #[arg(long, value_name = "X,Y")]
     pub origin: Option<String>,
-    /// Priming bead length, mm [default: 2.5 times the bead length between valves and plate, at least 5].
+    /// Priming bead length, mm [default: 2.5 times the bead length between valves and plate, at least 5]
+    /// (G-code in: 0 for none, where the file primes itself).
     #[arg(long, value_name = "MM")]
     pub prime_mm: Option<f64>,
     /// Material runs shorter than this are merged into their neighbours, mm.

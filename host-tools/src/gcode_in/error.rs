@@ -128,6 +128,12 @@ pub enum GcodeInError {
         /// The flag that raises it.
         flag: &'static str,
     },
+    /// A priming bead length that is not a length.
+    #[error("--prime-mm {value}: give a length in mm, or 0 for no priming bead")]
+    BadPrime {
+        /// What was given.
+        value: f64,
+    },
     /// No room on the plate for the priming bead.
     #[error("no room for the {len:.1} mm priming bead below or above the part within the machine's travel (move the part, or give --prime-mm 0 if the G-code primes itself)")]
     NoRoomForPrime {
