@@ -6,9 +6,11 @@
 //! command line (`cmd/slice.rs`) maps its flags onto [`ImportOptions`].
 //!
 //! The lexer, modal machine, arcs, purge, tool map, emitter and errors use nothing from
-//! the rest of the crate, so the fuzz target compiles them alone.
+//! the rest of the crate, so the fuzz target compiles them alone (`as_written`, the
+//! firmware baseline the slicer tests compare with, does not).
 
 pub mod arcs;
+pub mod as_written;
 pub mod emit;
 pub mod error;
 pub mod lexer;
@@ -292,7 +294,7 @@ fn place_prime(
     let len = match len {
         Some(0.0) => return Ok(None),
         Some(l) if l.is_finite() && l > 0.0 => l,
-        Some(_) => return Err(GcodeInError::NoRoomForPrime { len: f64::NAN }),
+        Some(l) => return Err(GcodeInError::BadPrime { value: l }),
         None => (2.5 * transit).ceil().max(5.0),
     };
     let pitch = config.channel.line_pitch_mm as f64;
