@@ -4,6 +4,7 @@
 pub mod calibrate;
 pub mod cmd;
 pub mod fixtures;
+pub mod gcode_in;
 pub mod inspect;
 pub mod link;
 pub mod serve;
