@@ -1,5 +1,7 @@
 #!/usr/bin/env python3
-"""The host tools' module import graph (host-tools/src), and its circles.
+"""The host tools' module import graph (host-tools/src), and its circles; with `--core`,
+the same for the no_std core (src/, without the firmware binary under src/bin/, which is
+a crate of its own).
 
 For every module that has child modules (the crate root, `slicer`, `serve`, ...) the graph
 among its direct children: child A -> child B when a path in A's files (a `use`, or a
@@ -13,6 +15,8 @@ compiler: a glob import (`use x::*`) counts as an edge to `x`.
 
 Prints each level's edges, then the circles (strongly connected parts of two or more
 modules); `--check` prints only the circles and exits 1 if there is any.
+`--core` reads src/ instead and also prints the crate level's layers (each module on the
+first layer above everything it uses), the chain the core should read as.
 Where it stops: it reads `use` trees and `a::b::c` paths; macros that build paths and
 re-exports that hide where an item lives are read as written.
 """
@@ -20,15 +24,20 @@ import os
 import re
 import sys
 
-ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "host-tools", "src")
+HERE = os.path.dirname(os.path.abspath(__file__))
+HOST = os.path.join(HERE, "..", "host-tools", "src")
+CORE = os.path.join(HERE, "..", "src")
 
 
-def module_files(root):
-    """{module path tuple: file} for every .rs file under root (lib.rs is the root)."""
+def module_files(root, skip=()):
+    """{module path tuple: file} for every .rs file under root (lib.rs is the root),
+    leaving out the top-level directories named in `skip`."""
     mods = {}
     for dirpath, _, files in os.walk(root):
         rel = os.path.relpath(dirpath, root)
         base = () if rel == "." else tuple(rel.split(os.sep))
+        if base and base[0] in skip:
+            continue
         for f in files:
             if not f.endswith(".rs"):
                 continue
@@ -245,9 +254,30 @@ def name(m):
     return "::".join(m) if m else "crate"
 
 
+def layers(graph):
+    """The modules of an acyclic graph by layer: a module sits one above the highest
+    module it uses (leaves on layer 0)."""
+    depth = {}
+
+    def d(v):
+        if v not in depth:
+            depth[v] = 0  # a circle (reported apart) must not recurse forever
+            depth[v] = 1 + max((d(w) for w in graph.get(v, ())), default=-1)
+        return depth[v]
+
+    for v in list(graph) + [w for ws in graph.values() for w in ws]:
+        d(v)
+    out = {}
+    for v, k in depth.items():
+        out.setdefault(k, []).append(v)
+    return [sorted(out[k]) for k in sorted(out)]
+
+
 def main():
     check = "--check" in sys.argv[1:]
-    mods = module_files(ROOT)
+    core = "--core" in sys.argv[1:]
+    what = "the core (src)" if core else "host-tools"
+    mods = module_files(CORE, skip=("bin",)) if core else module_files(HOST)
     edges = {m: references(m, f, mods) - {m} for m, f in mods.items()}
     found = []
     for parent, graph in sorted(levels(mods, edges).items()):
@@ -257,12 +287,16 @@ def main():
                 print(f"  {a[-1]} -> {', '.join(sorted(b[-1] for b in graph[a]))}")
         for c in circles(graph):
             found.append((parent, c))
+    if core and not check and not any(parent == () for parent, _ in found):
+        print("crate layers, lowest first:")
+        for k, layer in enumerate(layers(levels(mods, edges).get((), {}))):
+            print(f"  {k}: {', '.join(m[-1] for m in layer)}")
     if found:
-        print("circles in host-tools:")
+        print(f"circles in {what}:")
         for parent, c in found:
             print(f"  in {name(parent)}: {' <-> '.join(x[-1] for x in c)}")
     else:
-        print("no circles in host-tools")
+        print(f"no circles in {what}")
     return 1 if (check and found) else 0
 
 

@@ -9,12 +9,19 @@ use crate::vol::Vol;
 use core::fmt;
 use serde::{Deserialize, Serialize};
 
+mod channel;
+mod check;
+mod control;
+mod flow;
+mod inlet;
+mod motion;
 mod pause;
+mod problem;
+use check::{axis_check, Check};
 pub use pause::{Park, PauseConfig};
+pub use problem::{ConfigError, Field, Problem};
 
-/// Most inlets a config can list (the wire and file formats' limit); a build supports
-/// `N <= MAX_CONFIG_INLETS` of them and refuses configs with more.
-pub const MAX_CONFIG_INLETS: usize = 8;
+pub use crate::capacity::MAX_CONFIG_INLETS;
 /// Longest material name, bytes.
 pub const MATERIAL_NAME_LEN: usize = 24;
 
@@ -217,166 +224,6 @@ pub struct SyringeConfig {
     pub lag_n: f32,
 }
 
-/// Where in the config a problem is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Field {
-    /// Section: "channel", "motion", "control" or "inlet".
-    pub section: &'static str,
-    /// Inlet number or axis, where the key is per inlet or per axis.
-    pub index: Option<u8>,
-    /// The key.
-    pub key: &'static str,
-}
-
-/// What is wrong with a value.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Problem {
-    /// NaN or infinite.
-    NotFinite,
-    /// Must be above zero.
-    NotPositive(f32),
-    /// Must be zero or more.
-    Negative(f32),
-    /// Outside the accepted range.
-    OutOfRange {
-        /// The value given.
-        got: f32,
-        /// Lowest accepted.
-        min: f32,
-        /// Highest accepted.
-        max: f32,
-    },
-    /// More inlets than this build supports.
-    TooManyInlets {
-        /// Inlets configured.
-        got: usize,
-        /// Inlets this build supports.
-        max: usize,
-    },
-    /// No inlet configured.
-    NoInlets,
-    /// `travel_min_mm` is not below `travel_max_mm`.
-    EmptyTravel,
-    /// The control rate does not give a whole number of microseconds.
-    RateNotDivisor(u32),
-    /// The fastest move would need more steps per second than the drivers take.
-    StepRate {
-        /// Steps/s the axis would need.
-        needed: f32,
-        /// Steps/s allowed, less one step per control cycle of rounding headroom.
-        allowed: f32,
-    },
-    /// The flow can push the head faster than the print-speed cap.
-    FlowTooFast {
-        /// Speed the flow can reach, mm/s.
-        speed: f32,
-        /// Inlet whose pressure reaches it.
-        inlet: u8,
-        /// Material filling the channel when it does.
-        through: u8,
-    },
-    /// A value that must not exceed another one does.
-    Above {
-        /// The value given.
-        got: f32,
-        /// The bound.
-        limit: f32,
-        /// What the bound is.
-        what: &'static str,
-    },
-    /// `auto` pressure could not be computed (flow law gives no finite value).
-    AutoPressure,
-    /// Some inlets are syringes and some pneumatic; a machine is one or the other.
-    MixedDrives,
-    /// Ramping the head through the flow's largest step at this acceleration takes longer
-    /// than the executor's ramp window holds.
-    RampTooLong {
-        /// The step of head speed, mm/s.
-        step: f32,
-        /// Time the ramp needs, ms.
-        needed_ms: f32,
-        /// Longest ramp the executor holds at this control rate, ms.
-        max_ms: f32,
-    },
-}
-
-/// A config value that cannot print, naming the field and the reason.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ConfigError {
-    /// Where.
-    pub field: Field,
-    /// What.
-    pub problem: Problem,
-}
-
-impl fmt::Display for Field {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.section, self.index) {
-            ("inlet", Some(i)) => write!(f, "inlet[{i}].{}", self.key),
-            (s, Some(i)) => write!(f, "{s}.{}[{i}]", self.key),
-            (s, None) => write!(f, "{s}.{}", self.key),
-        }
-    }
-}
-
-impl fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: ", self.field)?;
-        match self.problem {
-            Problem::NotFinite => write!(f, "must be a finite number"),
-            Problem::NotPositive(v) => write!(f, "must be above zero (got {v})"),
-            Problem::Negative(v) => write!(f, "must not be negative (got {v})"),
-            Problem::OutOfRange { got, min, max } => {
-                write!(f, "{got} is outside the accepted range {min} ..= {max}")
-            }
-            Problem::TooManyInlets { got, max } => write!(
-                f,
-                "{got} inlets configured but this build supports at most {max}"
-            ),
-            Problem::NoInlets => write!(f, "at least one inlet is needed"),
-            Problem::EmptyTravel => write!(f, "travel_min_mm must be below travel_max_mm"),
-            Problem::RateNotDivisor(r) => write!(
-                f,
-                "{r} Hz does not give a whole number of microseconds per cycle (try 10000)"
-            ),
-            Problem::StepRate { needed, allowed } => write!(
-                f,
-                "needs {needed:.0} steps/s at top speed but the drivers allow {allowed:.0} \
-                 (max_step_rate_hz less one step per control cycle); lower the speed"
-            ),
-            Problem::FlowTooFast {
-                speed,
-                inlet,
-                through,
-            } => write!(
-                f,
-                "the flow can drive the head at {speed:.1} mm/s (inlet {inlet}'s pressure through a \
-                 channel full of inlet {through}'s material), above this cap; raise the cap or \
-                 lower that pressure"
-            ),
-            Problem::Above { got, limit, what } => {
-                write!(f, "{got} is above {what} ({limit})")
-            }
-            Problem::AutoPressure => write!(f, "\"auto\" pressure could not be computed"),
-            Problem::MixedDrives => write!(
-                f,
-                "mixes syringe and pneumatic inlets; make every inlet a syringe or none"
-            ),
-            Problem::RampTooLong {
-                step,
-                needed_ms,
-                max_ms,
-            } => write!(
-                f,
-                "the flow can change the head speed by {step} mm/s at once; a ramp within \
-                 this acceleration takes {needed_ms} ms, longer than the {max_ms} ms the \
-                 executor holds: raise it, or give the valves pressure_rise_ms and \
-                 pressure_decay_ms"
-            ),
-        }
-    }
-}
-
 /// One validated inlet in the core's units (Pa, s, mm).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Inlet<R> {
@@ -568,81 +415,6 @@ impl<R: Real, const N: usize> Machine<R, N> {
 /// hold where no step of the flow forces more.
 pub const SECTION_BAND: f64 = 0.01;
 
-struct Check {
-    section: &'static str,
-    index: Option<u8>,
-}
-
-impl Check {
-    fn err(&self, key: &'static str, problem: Problem) -> ConfigError {
-        ConfigError {
-            field: Field {
-                section: self.section,
-                index: self.index,
-                key,
-            },
-            problem,
-        }
-    }
-    fn finite(&self, key: &'static str, v: f32) -> Result<f32, ConfigError> {
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(self.err(key, Problem::NotFinite))
-        }
-    }
-    fn positive(&self, key: &'static str, v: f32) -> Result<f32, ConfigError> {
-        let v = self.finite(key, v)?;
-        if v > 0.0 {
-            Ok(v)
-        } else {
-            Err(self.err(key, Problem::NotPositive(v)))
-        }
-    }
-    fn range(&self, key: &'static str, v: f32, min: f32, max: f32) -> Result<f32, ConfigError> {
-        let v = self.finite(key, v)?;
-        if v >= min && v <= max {
-            Ok(v)
-        } else if v < 0.0 && min >= 0.0 {
-            Err(self.err(key, Problem::Negative(v)))
-        } else {
-            Err(self.err(key, Problem::OutOfRange { got: v, min, max }))
-        }
-    }
-    fn positive_max(&self, key: &'static str, v: f32, max: f32) -> Result<f32, ConfigError> {
-        let v = self.positive(key, v)?;
-        if v <= max {
-            Ok(v)
-        } else {
-            Err(self.err(
-                key,
-                Problem::OutOfRange {
-                    got: v,
-                    min: 0.0,
-                    max,
-                },
-            ))
-        }
-    }
-}
-
-fn axis_check(section: &'static str, axis: usize) -> Check {
-    Check {
-        section,
-        index: Some(axis as u8),
-    }
-}
-
-/// Flow through a channel full of one material at pressure `p_pa`, mm^3/s (f64: used at
-/// validation time only).
-fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
-    let per_vol = p_pa / v_channel_mm3;
-    if per_vol <= law.b {
-        return 0.0;
-    }
-    libm::pow((per_vol - law.b) / law.a, 1.0 / law.n)
-}
-
 /// Share of the X/Y acceleration limit a speed ramp may use when the head ramps through
 /// flow steps; corners get `CORNER_SHARE`. A ramp on a fillet adds its tangential
 /// acceleration to the centripetal one at right angles, so their vector sum, and with it
@@ -704,512 +476,62 @@ pub fn ramp_window(dv: f64, v: f64, tau: f64, a: f64) -> f64 {
     hi
 }
 
-/// What the flow asks of the head: the largest change of head speed faster than the X/Y
-/// limit follows (mm/s, 0 if none), the largest acceleration the flow asks for where it
-/// stays within that limit (mm/s^2), and the ramp window its faster changes need at
-/// `RAMP_SHARE` of the limit (s).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct FlowDemand {
-    step: f64,
-    /// The largest of those changes made at once (a valve whose pressure switches at
-    /// once, a syringe's lag taken as a step), mm/s.
-    instant: f64,
-    accel: f64,
-    window_s: f64,
-}
-
-impl FlowDemand {
-    /// A change of `dv` by a line of time constant `tau` moving at up to `v`.
-    fn event(&mut self, dv: f64, tau: f64, v: f64, a_xy: f64) {
-        // A first-order pressure change moves the flow at most `v / tau` (its start).
-        let a = if tau > 0.0 { v / tau } else { f64::INFINITY };
-        if a > a_xy {
-            self.step = self.step.max(dv);
-            if tau.is_nan() || tau <= 0.0 {
-                self.instant = self.instant.max(dv);
-            }
-        } else {
-            self.accel = self.accel.max(a);
-        }
-        self.window_s = self
-            .window_s
-            .max(ramp_window(dv, v, tau, a_xy * RAMP_SHARE));
-    }
-}
-
-/// Pneumatic inlets: the flow's demand (valve opening, closing or switching with a
-/// channel full of any one material: a mix lies between).
-fn valve_steps<R: Real, const N: usize>(
-    inlets: &[Inlet<R>],
-    laws: &heapless::Vec<FlowLaw<f64>, N>,
-    supplies: &heapless::Vec<f64, N>,
-    v_channel: f64,
-    s: f64,
-    a_xy: f64,
-) -> FlowDemand {
-    let mut d = FlowDemand::default();
-    for law in laws.iter() {
-        for (j, &pj) in supplies.iter().enumerate() {
-            let vj = flow_full(law, pj, v_channel) / s;
-            let (rise_j, decay_j) = (inlets[j].rise_s.to_f64(), inlets[j].decay_s.to_f64());
-            d.event(vj, rise_j, vj, a_xy);
-            d.event(vj, decay_j, vj, a_xy);
-            for (i, &pi) in supplies.iter().enumerate() {
-                if i == j {
-                    continue;
-                }
-                let vi = flow_full(law, pi, v_channel) / s;
-                let decay_i = inlets[i].decay_s.to_f64();
-                // Both lines move during a switch; the faster bounds the junction.
-                let (tau, v) = if vj / rise_j.max(1e-30) > vi / decay_i.max(1e-30) {
-                    (rise_j, vj)
-                } else {
-                    (decay_i, vi)
-                };
-                d.event((vj - vi).abs(), tau, v, a_xy);
-            }
-        }
-    }
-    d
-}
-
-/// Syringes: a plunger start, stop or switch moves the flow through the Weibull lag
-/// `1 - exp(-k t^n)`, whose steepest slope is `k` at the start for `n = 1`, unbounded for
-/// `n < 1`, and `n k t^(n-1) exp(-(n-1)/n)` at `k t^n = (n-1)/n` above.
-fn syringe_steps<R: Real>(
-    inlets: &[Inlet<R>],
-    print_speed: f64,
-    v_flow_max: f64,
-    a_xy: f64,
-) -> FlowDemand {
-    let mut d = FlowDemand::default();
-    for sy in inlets.iter().filter_map(|i| i.syringe) {
-        let (k, n) = (sy.lag_k.to_f64(), sy.lag_n.to_f64());
-        let slope = if n < 1.0 {
-            f64::INFINITY
-        } else if n == 1.0 {
-            k
-        } else {
-            let t = libm::pow((n - 1.0) / (n * k), 1.0 / n);
-            n * k * libm::pow(t, n - 1.0) * libm::exp(-(n - 1.0) / n)
-        };
-        // A switch's two responses move in opposite directions; each one at most
-        // `slope` of the print speed per second.
-        let a = print_speed * slope;
-        if a > a_xy {
-            d.step = d.step.max(v_flow_max);
-            d.instant = d.instant.max(v_flow_max);
-            // Ramped as a step: a Weibull lag is no first-order response.
-            d.window_s = d.window_s.max(v_flow_max / (a_xy * RAMP_SHARE));
-        } else {
-            d.accel = d.accel.max(a);
-        }
-    }
-    d
-}
-
 impl Config {
     /// Validates this config for a build supporting `N` inlets and converts it to the
-    /// core's units. Every problem names its field.
+    /// core's units. Every problem names its field. The sections are checked in this
+    /// order, each by its own `check` (a later one may lean on what an earlier one
+    /// accepted), and the first problem found is the one reported.
     pub fn validate<R: Real, const N: usize>(&self) -> Result<Machine<R, N>, ConfigError> {
-        let ch = Check {
-            section: "channel",
-            index: None,
-        };
-        let c = &self.channel;
-        // Lower bounds below are where printing stops making sense (a 50 um bead, a 10 um
-        // layer, 0.1 mm/s): past them the slicer's sampling and the step timing degenerate
-        // (a pitch under the 20 um sample grid panicked the image slicer).
-        let d = ch.range("nozzle_diameter_mm", c.nozzle_diameter_mm, 0.05, 20.0)? as f64;
-        let ls = ch.positive_max("channel_length_mm", c.channel_length_mm, 500.0)? as f64;
-        let h_noz = ch.range("nozzle_height_mm", c.nozzle_height_mm, 0.0, 50.0)? as f64;
-        let h_layer = ch.range("layer_height_mm", c.layer_height_mm, 0.01, 20.0)? as f64;
-        let pitch = ch.range("line_pitch_mm", c.line_pitch_mm, 0.05, 50.0)? as f64;
-        let s = match c.bead_area_mm2 {
-            Some(a) => ch.range("bead_area_mm2", a, 1e-4, 1000.0)? as f64,
-            None => pitch * h_layer,
-        };
-        let area = core::f64::consts::PI * d * d / 4.0;
-        let v_channel = area * ls;
-        let v_hang = area * (h_noz - h_layer).max(0.0);
-
-        let mc = Check {
-            section: "motion",
-            index: None,
-        };
+        let g = channel::check(&self.channel)?;
         let m = &self.motion;
-        let mut steps_per_mm = [R::ZERO; 3];
-        let mut min_mm = [R::ZERO; 3];
-        let mut max_mm = [R::ZERO; 3];
-        let mut max_speed = [R::ZERO; 3];
-        let mut max_accel = [R::ZERO; 3];
-        let step_rate = mc.positive_max("max_step_rate_hz", m.max_step_rate_hz, 5.0e6)? as f64;
-
-        let cc = Check {
-            section: "control",
-            index: None,
+        let timing = control::check(&self.control, motion::step_rate(m)?)?;
+        let axes = motion::axes::<R>(m, timing.allowed_rate)?;
+        let speeds = motion::speeds(m)?;
+        let cx = inlet::Context {
+            d: g.d,
+            s: g.s,
+            v_channel: g.v_channel,
+            print_speed: speeds.print,
+            allowed_rate: timing.allowed_rate,
         };
-        let rate = self.control.rate_hz;
-        if !(100..=100_000).contains(&rate) {
-            return Err(cc.err(
-                "rate_hz",
-                Problem::OutOfRange {
-                    got: rate as f32,
-                    min: 100.0,
-                    max: 100_000.0,
-                },
-            ));
-        }
-        if 1_000_000 % rate != 0 {
-            return Err(cc.err("rate_hz", Problem::RateNotDivisor(rate)));
-        }
-        let period_us = 1_000_000 / rate;
-        let allowed_rate = step_rate - rate as f64;
-        let max_steps_per_cycle = (step_rate / rate as f64) as u32;
-        if max_steps_per_cycle < 1 || allowed_rate <= 0.0 {
-            return Err(mc.err(
-                "max_step_rate_hz",
-                Problem::Above {
-                    got: rate as f32,
-                    limit: step_rate as f32,
-                    what: "the step rate (control.rate_hz must not exceed it)",
-                },
-            ));
-        }
-        for a in 0..3 {
-            let spm =
-                axis_check("motion", a).range("steps_per_mm", m.steps_per_mm[a], 1.0, 1.0e5)?;
-            let lo =
-                axis_check("motion", a).range("travel_min_mm", m.travel_min_mm[a], -1e4, 1e4)?;
-            let hi =
-                axis_check("motion", a).range("travel_max_mm", m.travel_max_mm[a], -1e4, 1e4)?;
-            if lo >= hi {
-                return Err(axis_check("motion", a).err("travel_max_mm", Problem::EmptyTravel));
-            }
-            let vmax =
-                axis_check("motion", a).range("max_speed_mm_s", m.max_speed_mm_s[a], 0.1, 5e3)?;
-            let amax =
-                axis_check("motion", a).range("max_accel_mm_s2", m.max_accel_mm_s2[a], 1.0, 1e6)?;
-            let needed = vmax as f64 * spm as f64;
-            if needed > allowed_rate {
-                return Err(axis_check("motion", a).err(
-                    "max_speed_mm_s",
-                    Problem::StepRate {
-                        needed: needed as f32,
-                        allowed: allowed_rate as f32,
-                    },
-                ));
-            }
-            steps_per_mm[a] = R::of(spm as f64);
-            min_mm[a] = R::of(lo as f64);
-            max_mm[a] = R::of(hi as f64);
-            max_speed[a] = R::of(vmax as f64);
-            max_accel[a] = R::of(amax as f64);
-        }
-        let v_xy_max = m.max_speed_mm_s[0].min(m.max_speed_mm_s[1]);
-        let print_speed = mc.range("print_speed_mm_s", m.print_speed_mm_s, 0.1, 5e3)? as f64;
-        let cap = mc.range("print_speed_max_mm_s", m.print_speed_max_mm_s, 0.1, 5e3)?;
-        if cap > v_xy_max {
-            return Err(mc.err(
-                "print_speed_max_mm_s",
-                Problem::Above {
-                    got: cap,
-                    limit: v_xy_max,
-                    what: "the X/Y max_speed_mm_s",
-                },
-            ));
-        }
-        if print_speed > cap as f64 {
-            return Err(mc.err(
-                "print_speed_mm_s",
-                Problem::Above {
-                    got: print_speed as f32,
-                    limit: cap,
-                    what: "print_speed_max_mm_s",
-                },
-            ));
-        }
-        let travel = mc.range("travel_speed_mm_s", m.travel_speed_mm_s, 0.1, 5e3)?;
-        let stop_fraction = mc.range("flow_stop_fraction", m.flow_stop_fraction, 1e-5, 0.5)?;
-
-        // Inlets.
-        if self.inlets.is_empty() {
-            return Err(Check {
-                section: "inlet",
-                index: None,
-            }
-            .err("material", Problem::NoInlets));
-        }
-        if self.inlets.len() > N {
-            return Err(Check {
-                section: "inlet",
-                index: None,
-            }
-            .err(
-                "material",
-                Problem::TooManyInlets {
-                    got: self.inlets.len(),
-                    max: N,
-                },
-            ));
-        }
-        let mut laws: heapless::Vec<FlowLaw<f64>, N> = heapless::Vec::new();
-        for (i, inlet) in self.inlets.iter().enumerate() {
-            let ic = Check {
-                section: "inlet",
-                index: Some(i as u8),
-            };
-            match inlet.rheology {
-                Rheology::Newtonian { viscosity_pa_s } => {
-                    ic.positive_max("rheology.newtonian.viscosity_pa_s", viscosity_pa_s, 1e7)?;
-                }
-                Rheology::PowerLaw {
-                    consistency_pa_sn,
-                    flow_index,
-                } => {
-                    ic.positive_max(
-                        "rheology.power_law.consistency_pa_sn",
-                        consistency_pa_sn,
-                        1e7,
-                    )?;
-                    ic.range("rheology.power_law.flow_index", flow_index, 0.1, 1.0)?;
-                }
-                Rheology::HerschelBulkley {
-                    yield_stress_pa,
-                    consistency_pa_sn,
-                    flow_index,
-                } => {
-                    ic.range(
-                        "rheology.herschel_bulkley.yield_stress_pa",
-                        yield_stress_pa,
-                        0.0,
-                        1e6,
-                    )?;
-                    ic.positive_max(
-                        "rheology.herschel_bulkley.consistency_pa_sn",
-                        consistency_pa_sn,
-                        1e7,
-                    )?;
-                    ic.range("rheology.herschel_bulkley.flow_index", flow_index, 0.1, 1.0)?;
-                }
-            }
-            // Capacity N was checked above, so this push cannot fail.
-            let _ = laws.push(FlowLaw::new(&inlet.rheology, d));
-        }
-        let mut inlets: heapless::Vec<Inlet<R>, N> = heapless::Vec::new();
-        let mut supplies: heapless::Vec<f64, N> = heapless::Vec::new();
-        for (i, inlet) in self.inlets.iter().enumerate() {
-            let ic = Check {
-                section: "inlet",
-                index: Some(i as u8),
-            };
-            let law = &laws[i];
-            let supply_pa = match inlet.pressure_kpa {
-                Pressure::Kpa(k) => ic.range("pressure_kpa", k, 0.1, 2000.0)? as f64 * 1e3,
-                Pressure::Auto => {
-                    let q = print_speed * s;
-                    let p = v_channel * (law.a * libm::pow(q, law.n) + law.b);
-                    if !(p.is_finite() && p > 0.0) {
-                        return Err(ic.err("pressure_kpa", Problem::AutoPressure));
-                    }
-                    if p > 2.0e6 {
-                        return Err(ic.err(
-                            "pressure_kpa",
-                            Problem::Above {
-                                got: (p / 1e3) as f32,
-                                limit: 2000.0,
-                                what: "the 2000 kPa the core accepts (\"auto\" for this material and speed)",
-                            },
-                        ));
-                    }
-                    p
-                }
-            };
-            let syringe = match inlet.syringe {
-                Some(sy) => {
-                    let spm3 = ic.range("syringe.steps_per_mm3", sy.steps_per_mm3, 0.01, 1.0e6)?;
-                    let k = ic.positive_max("syringe.lag_k", sy.lag_k, 1.0e6)?;
-                    let n = ic.range("syringe.lag_n", sy.lag_n, 0.2, 5.0)?;
-                    // The executor follows the lag through a 255-point response table
-                    // and looks ahead a bounded volume: a lag that takes longer than
-                    // this to settle (k = 1e-6, n = 5 takes 27 s) misplaced boundaries
-                    // by 21 mm in simulation.
-                    let settle = Syringe::settle_time(k as f64, n as f64);
-                    if settle.is_nan() || settle > MAX_SYRINGE_SETTLE_S {
-                        return Err(ic.err(
-                            "syringe.lag_k",
-                            Problem::Above {
-                                got: settle as f32,
-                                limit: MAX_SYRINGE_SETTLE_S as f32,
-                                what: "the longest lag the core follows, in seconds to settle \
-                                       within 1e-6 ((ln 1e6 / lag_k)^(1/lag_n)); raise lag_k \
-                                       or lower lag_n",
-                            },
-                        ));
-                    }
-                    if self.inlets.iter().any(|x| x.syringe.is_none()) {
-                        return Err(ic.err("syringe", Problem::MixedDrives));
-                    }
-                    let rate = print_speed * s;
-                    let needed = rate * spm3 as f64;
-                    if needed > allowed_rate {
-                        return Err(ic.err(
-                            "syringe.steps_per_mm3",
-                            Problem::StepRate {
-                                needed: needed as f32,
-                                allowed: allowed_rate as f32,
-                            },
-                        ));
-                    }
-                    Some(Syringe {
-                        steps_per_mm3: R::of(spm3 as f64),
-                        lag_k: R::of(k as f64),
-                        lag_n: R::of(n as f64),
-                        rate: R::of(rate),
-                    })
-                }
-                None => None,
-            };
-            let open = ic.range(
-                "valve_open_delay_ms",
-                inlet.valve_open_delay_ms,
-                0.0,
-                2000.0,
-            )?;
-            let close = ic.range(
-                "valve_close_delay_ms",
-                inlet.valve_close_delay_ms,
-                0.0,
-                2000.0,
-            )?;
-            let rise = ic.range("pressure_rise_ms", inlet.pressure_rise_ms, 0.0, 5000.0)?;
-            let decay = ic.range("pressure_decay_ms", inlet.pressure_decay_ms, 0.0, 5000.0)?;
-            let _ = supplies.push(supply_pa);
-            let _ = inlets.push(Inlet {
-                law: FlowLaw::new(&inlet.rheology, d),
-                supply_pa: R::of(supply_pa),
-                open_delay_s: R::of(open as f64 * 1e-3),
-                close_delay_s: R::of(close as f64 * 1e-3),
-                rise_s: R::of(rise as f64 * 1e-3),
-                decay_s: R::of(decay as f64 * 1e-3),
-                syringe,
-            });
-        }
-        // The junction never exceeds the highest supply and the channel never resists less
-        // than when full of its least resistive material, so this bounds the head speed.
-        let mut v_flow_max = 0.0f64;
-        let mut worst = (0u8, 0u8);
-        if self.inlets.iter().all(|x| x.syringe.is_some()) {
-            // Syringes push volume: during a switch the stopping syringe's outflow
-            // decays while the starting one's rises; their sum bounds the speed.
-            // The curves in single precision: the board validates in thread mode on an FPU
-            // without doubles, where 16 000 double `pow`s took it seconds.
-            let response = |k: f64, n: f64, t: f64| -> f64 {
-                if t <= 0.0 {
-                    0.0
-                } else {
-                    1.0 - libm::expf(-(k as f32) * libm::powf(t as f32, n as f32)) as f64
-                }
-            };
-            let rate = print_speed * s;
-            for (i, a) in self.inlets.iter().enumerate() {
-                for (j, b) in self.inlets.iter().enumerate() {
-                    let (Some(sa), Some(sb)) = (a.syringe, b.syringe) else {
-                        continue;
-                    };
-                    if i == j {
-                        // Its own stop and start cancel: the plunger's rate all along.
-                        if rate / s > v_flow_max {
-                            v_flow_max = rate / s;
-                            worst = (j as u8, i as u8);
-                        }
-                        continue;
-                    }
-                    let (ka, na) = (sa.lag_k as f64, sa.lag_n as f64);
-                    let (kb, nb) = (sb.lag_k as f64, sb.lag_n as f64);
-                    let t_end = Syringe::settle_time(ka, na).max(Syringe::settle_time(kb, nb));
-                    for step in 0..=4000 {
-                        let t = t_end * step as f64 / 4000.0;
-                        let total = 1.0 - response(ka, na, t) + response(kb, nb, t);
-                        let v = rate * total / s;
-                        if v > v_flow_max {
-                            v_flow_max = v;
-                            worst = (j as u8, i as u8);
-                        }
-                    }
-                }
-            }
-        } else {
-            for (i, &p) in supplies.iter().enumerate() {
-                for (j, law) in laws.iter().enumerate() {
-                    let v = flow_full(law, p, v_channel) / s;
-                    if v > v_flow_max {
-                        v_flow_max = v;
-                        worst = (i as u8, j as u8);
-                    }
-                }
-            }
-        }
-        if v_flow_max > cap as f64 * 1.000_001 {
-            return Err(mc.err(
-                "print_speed_max_mm_s",
-                Problem::FlowTooFast {
-                    speed: v_flow_max as f32,
-                    inlet: worst.0,
-                    through: worst.1,
-                },
-            ));
-        }
+        let ins = inlet::check::<R, N>(&self.inlets, &cx)?;
         let a_xy = m.max_accel_mm_s2[0].min(m.max_accel_mm_s2[1]) as f64;
-        let demand = if self.inlets.iter().all(|x| x.syringe.is_some()) {
-            syringe_steps(&inlets, print_speed, v_flow_max, a_xy)
-        } else {
-            valve_steps(&inlets, &laws, &supplies, v_channel, s, a_xy)
-        };
-        let (flow_step, flow_accel) = (demand.step, demand.accel);
-        let dt = period_us as f64 * 1e-6;
-        let (corner_share, ramp_cycles) = if flow_step > 0.0 {
-            let t = demand.window_s;
-            let cycles = libm::ceil(t / dt) as u64 | 1;
-            if cycles > crate::ramp::RAMP_CAPACITY as u64 - 1 {
-                return Err(mc.err(
-                    "max_accel_mm_s2",
-                    Problem::RampTooLong {
-                        step: flow_step as f32,
-                        needed_ms: (t * 1e3) as f32,
-                        max_ms: ((crate::ramp::RAMP_CAPACITY - 1) as f64 * dt * 1e3) as f32,
-                    },
-                ));
-            }
-            (CORNER_SHARE, cycles as u32)
-        } else {
-            (1.0, 1)
-        };
-        let corner_radius = v_flow_max * v_flow_max / (a_xy * corner_share);
+        let dt = timing.period_us as f64 * 1e-6;
+        let flow = flow::check(
+            &self.inlets,
+            &ins,
+            (g.s, g.v_channel),
+            speeds.print,
+            speeds.cap,
+            a_xy,
+            dt,
+        )?;
+        let (v_flow_max, demand) = (flow.v_flow_max, flow.demand);
+        let corner_radius = v_flow_max * v_flow_max / (a_xy * flow.corner_share);
         Ok(Machine {
-            d_mm: R::of(d),
-            v_channel: Vol::from_mm3(v_channel),
-            v_hang: Vol::from_mm3(v_hang),
-            bead_area: R::of(s),
-            inlets,
+            d_mm: R::of(g.d),
+            v_channel: Vol::from_mm3(g.v_channel),
+            v_hang: Vol::from_mm3(g.v_hang),
+            bead_area: R::of(g.s),
+            inlets: ins.inlets,
             motion: Motion {
-                steps_per_mm,
-                min_mm,
-                max_mm,
-                max_speed,
-                max_accel,
-                travel_speed: R::of(travel.min(m.max_speed_mm_s[0]) as f64),
-                max_steps_per_cycle,
+                steps_per_mm: axes.steps_per_mm,
+                min_mm: axes.min_mm,
+                max_mm: axes.max_mm,
+                max_speed: axes.max_speed,
+                max_accel: axes.max_accel,
+                travel_speed: R::of(speeds.travel.min(m.max_speed_mm_s[0]) as f64),
+                max_steps_per_cycle: timing.max_steps_per_cycle,
                 wait_for_flow_decay: m.wait_for_flow_decay,
             },
-            period_us,
+            period_us: timing.period_us,
             v_flow_max: R::of(v_flow_max),
             corner_radius: R::of(corner_radius),
-            flow_step: R::of(flow_step),
-            flow_accel: R::of(flow_accel),
-            ramp_cycles,
-            ramp_offset_mm: R::of(demand.instant * ramp_cycles as f64 * dt / 8.0),
-            q_stop: R::of(stop_fraction as f64 * v_flow_max * s),
+            flow_step: R::of(demand.step),
+            flow_accel: R::of(demand.accel),
+            ramp_cycles: flow.ramp_cycles,
+            ramp_offset_mm: R::of(demand.instant * flow.ramp_cycles as f64 * dt / 8.0),
+            q_stop: R::of(speeds.stop_fraction as f64 * v_flow_max * g.s),
             syringes: self.inlets.iter().all(|x| x.syringe.is_some()),
             park: self.pause.validate(&m.travel_min_mm, &m.travel_max_mm)?,
         })

@@ -14,24 +14,18 @@ use crate::motion::{fillet, Fillet, Trapezoid, V2};
 use crate::outputs::{Axis, Outputs};
 use crate::ramp::{to_units, Frame, Ramp};
 use crate::real::Real;
+pub use crate::state::{Fault, Report, RunState};
 use crate::step_gen::StepGen;
 use crate::step_ramps::StepRamps;
 use crate::vol::Vol;
 use heapless::Deque;
-use serde::{Deserialize, Serialize};
 
 mod park;
 mod pause;
 pub use park::{ParkStage, RefillError};
 pub use pause::{PauseInfo, ResumeError};
 
-/// Planned items (finalised print segments, travels, dwells, end) the executor holds
-/// ahead of the head. The valve cursor needs the path up to (channel + filament volume +
-/// switch lead) / bead section ahead, about 4 mm on the seed printhead: 20 segments of
-/// 0.2 mm. 256 leaves room for finer beads and keeps RAM use on the STM32 near 20 KiB.
-pub const PLAN_CAPACITY: usize = 256;
-/// Material boundaries held ahead of the valve cursor (at most one per planned item).
-pub const BOUNDARY_CAPACITY: usize = PLAN_CAPACITY;
+pub use crate::capacity::{BOUNDARY_CAPACITY, PLAN_CAPACITY};
 /// Cycles a late `tick` may catch up at once before it is a fault.
 pub const MAX_CATCH_UP: u64 = 4;
 /// Prediction chunks integrated per unit of prediction work. The two kinds of prediction
@@ -42,108 +36,10 @@ pub const PREDICT_BUDGET: u32 = 1;
 /// in between, the last two answers are extrapolated.
 pub const PREDICT_INTERVAL: u64 = 20;
 
-/// Why the executor went to the safe state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Fault {
-    /// A planned position lies outside the axis's travel limits.
-    Limit {
-        /// The axis.
-        axis: Axis,
-    },
-    /// A cycle needed more steps than the drivers' maximum rate allows.
-    StepRate {
-        /// The axis.
-        axis: Axis,
-        /// Steps the cycle needed.
-        steps: u32,
-        /// Steps a cycle may have.
-        max: u32,
-    },
-    /// The job queue ran dry while paste was flowing.
-    Underrun,
-    /// The job needs more look-ahead than `PLAN_CAPACITY` items give (features too fine
-    /// for the bead section).
-    LookaheadFull,
-    /// A command that cannot be executed.
-    InvalidCommand(CommandError),
-    /// More material changes in flight than the channel model holds.
-    ChannelFull,
-    /// The flow did not die out after the valves closed.
-    FlowDidNotStop,
-    /// `tick` came more than `MAX_CATCH_UP` periods late.
-    Late {
-        /// Periods since the previous tick.
-        periods: u64,
-    },
-    /// Emergency stop input.
-    EStop,
-    /// Watchdog expiry.
-    Watchdog,
-    /// Host link lost while printing (and the config says stop).
-    LinkLost,
-    /// A job command arrived with no job begun.
-    NotReady,
-    /// A config failed validation while loading; the old one is no longer trusted.
-    InvalidConfig,
-}
-
-impl core::fmt::Display for Fault {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            Fault::Limit { axis } => write!(f, "{axis:?} would leave its travel limits"),
-            Fault::StepRate { axis, steps, max } => write!(
-                f,
-                "{axis:?} needed {steps} steps in one cycle, more than the {max} allowed"
-            ),
-            Fault::Underrun => write!(f, "job queue ran dry while printing"),
-            Fault::LookaheadFull => write!(
-                f,
-                "job needs more look-ahead than the executor holds (features too fine)"
-            ),
-            Fault::InvalidCommand(e) => write!(f, "invalid command: {e}"),
-            Fault::ChannelFull => write!(f, "too many material changes in the channel at once"),
-            Fault::FlowDidNotStop => write!(f, "flow did not stop after the valves closed"),
-            Fault::Late { periods } => write!(f, "control cycle {periods} periods late"),
-            Fault::EStop => write!(f, "emergency stop"),
-            Fault::Watchdog => write!(f, "watchdog expired"),
-            Fault::LinkLost => write!(f, "host link lost while printing"),
-            Fault::NotReady => write!(f, "command before a job was begun"),
-            Fault::InvalidConfig => write!(f, "machine config failed validation"),
-        }
-    }
-}
-
 impl From<ChannelFull> for Fault {
     fn from(_: ChannelFull) -> Self {
         Fault::ChannelFull
     }
-}
-
-/// What the executor is doing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum RunState {
-    /// No job.
-    Idle,
-    /// Laying a bead.
-    Printing,
-    /// Waiting at a bead's end for the flow to die out.
-    Settling,
-    /// Travel or layer move, valves closed.
-    Travelling,
-    /// Dwell.
-    Dwelling,
-    /// Paused: valves shut, head at rest (mid-bead at the pause point, or between beads).
-    Paused,
-    /// Job finished.
-    Done,
-    /// Job aborted on request.
-    Aborted,
-    /// Stopped by a fault.
-    Faulted,
-    /// Valves shut for a pause; the head follows the flow's tail to the pause point. (A
-    /// request still waiting for its valve decision, see `Executor::pause`, reads as
-    /// Printing: the tick does not pay for telling them apart.)
-    Pausing,
 }
 
 /// Why `push` did not take a command.
@@ -171,34 +67,6 @@ impl core::fmt::Display for LoadError {
             LoadError::Busy => write!(f, "a job is running; abort or finish it first"),
         }
     }
-}
-
-/// The state after a cycle.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Report<R> {
-    /// Run state.
-    pub state: RunState,
-    /// Head position the outputs were commanded to, mm (with speed ramps, the mean of the
-    /// ramp window; the fields below marked "plan" run half a window ahead of it).
-    pub position: [R; 3],
-    /// Valves commanded open, bit per inlet.
-    pub valves: u32,
-    /// Inlet feeding the channel (model), if anything flows.
-    pub feeding: Option<u8>,
-    /// Material landing on the plate (model).
-    pub landing: u8,
-    /// Mean flow over the cycle, mm^3/s.
-    pub q: R,
-    /// Volume that left the nozzle this cycle.
-    pub dv: Vol,
-    /// Head speed along the print path this cycle, mm/s (0 off the path).
-    pub speed: R,
-    /// Head position along the concatenated print paths, as volume.
-    pub plan_volume: Vol,
-    /// Index (0-based, in push order) of the command being executed.
-    pub command_index: u32,
-    /// Material slugs in the channel and hanging filament (features in flight).
-    pub slugs: u8,
 }
 
 /// A finalised print segment: the straight part, then the fillet into the next segment.
@@ -402,6 +270,9 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// The steps of the plan's velocity the ramp window re-ramps over their own windows.
     step_ramps: StepRamps,
     ramped: bool,
+    /// Ramped, and the valves' flow changes are first-order ones that
+    /// `crate::switch_window` sizes a window for at each decision.
+    sizing: bool,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -451,6 +322,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             ramp: Ramp::new(),
             step_ramps: StepRamps::new(),
             ramped: false,
+            sizing: false,
         }
     }
 
@@ -495,6 +367,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.plunger_vol = [Vol::ZERO; N];
         self.plunger_steps = [0; N];
         self.ramped = self.machine.ramp_cycles > 1;
+        self.sizing = self.ramped
+            && self
+                .machine
+                .inlets
+                .iter()
+                .all(|i| i.syringe.is_none() && i.rise_s > R::ZERO && i.decay_s > R::ZERO);
         self.hold_ramp();
     }
 
@@ -753,7 +631,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.safe_state(fault, out);
     }
 
-    /// The one path to the safe state: all valves closed, motion stopped, drivers off.
+    /// The one path to the safe state: every valve closed, motion stopped, drivers off.
     fn safe_state(&mut self, fault: Fault, out: &mut impl Outputs) {
         self.safe_outputs(out);
         self.stop_ramp();
@@ -761,14 +639,17 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.pending_fault = None;
     }
 
+    /// The outputs' one safe state (`outputs::force_safe`: every valve a config can
+    /// name, not only this machine's inlets), and the executor's record of them. Out of
+    /// line: a printing cycle never runs it, and inlined it cost every cycle of
+    /// bench-m4 one to five instructions.
+    #[cold]
+    #[inline(never)]
     fn safe_outputs(&mut self, out: &mut impl Outputs) {
-        for i in 0..self.machine.inlet_count() {
-            out.valve(i as u8, false);
-        }
+        crate::outputs::force_safe(out);
         self.valves_out = 0;
         self.model.command(0);
         self.want = None;
-        out.drivers(false);
         self.drivers_on = false;
     }
 
@@ -1038,9 +919,21 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// (`last_dv` sums a catch-up's cycles). Out of line, as `ramped_report`.
     #[inline(never)]
     fn push_frame(&mut self, dv: Vol) {
+        if self.ramp.narrowing() {
+            // In tail position: the usual path keeps its registers.
+            return self.push_frame_narrow(dv);
+        }
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         self.ramp.push(f, &mut self.step_ramps);
+    }
+
+    /// `push_frame` while a valve decision's window narrows the ramp's mean.
+    #[inline(never)]
+    fn push_frame_narrow(&mut self, dv: Vol) {
+        let mut f = self.frame();
+        f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.ramp.push_narrow(f, &mut self.step_ramps);
     }
 
     /// Model, head and valve decisions for one cycle. Returns the volume extruded.
@@ -1191,6 +1084,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
                 self.want = Some(self.entry_material);
+                if self.sizing {
+                    self.size_ramp(Some(self.entry_material));
+                }
                 self.model.command(1 << self.entry_material);
                 self.stop.reset();
                 self.switch.reset();
@@ -1355,6 +1251,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     self.switch.work(&self.model);
                 }
                 if due {
+                    if self.sizing {
+                        self.size_ramp(Some(m));
+                    }
                     self.model.command(1 << m);
                     self.want = Some(m);
                     self.entry_material = m;
@@ -1373,6 +1272,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     .answer(&self.model, Goal::Stop)
                     .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
                 if due {
+                    if self.sizing {
+                        self.size_ramp(None);
+                    }
                     self.model.command(0);
                     self.want = None;
                     self.phase = Phase::Print { stopping: true };
@@ -1383,6 +1285,41 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         Ok(())
+    }
+
+    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
+    /// it opens, none to stop): once per decision, from the channel's contents now
+    /// (`crate::switch_window`); the machine's window where those do not say.
+    #[inline(never)]
+    fn size_ramp(&mut self, opening: Option<u8>) {
+        let (head, inv_s) = (self.head, self.inv_s);
+        let seg = |i: &Item<R>| match i {
+            Item::Seg(s) => Some(*s),
+            _ => None,
+        };
+        let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
+        // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
+        let turns = (self.plan.iter().map_while(seg))
+            .zip(self.plan.iter().skip(1).map_while(seg))
+            .take_while(|(a, _)| !a.last)
+            .filter_map(|(a, b)| {
+                let f = a.fillet?;
+                Some(crate::switch_window::Turn {
+                    at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
+                    radius: f.radius.to_f32(),
+                    from: f2(a.dir),
+                    to: f2(b.dir),
+                })
+            });
+        let h = crate::switch_window::switch_half(
+            &self.machine,
+            &self.model,
+            self.model.commanded(),
+            opening,
+            turns,
+        )
+        .unwrap_or(self.machine.ramp_cycles / 2);
+        self.ramp.set_goal(h);
     }
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs

@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod capacity;
 pub mod command;
 pub mod config;
 pub mod device;
@@ -18,17 +19,17 @@ mod poly;
 pub mod ramp;
 pub mod real;
 pub mod rheology;
+pub mod state;
 pub mod step_gen;
 pub mod step_ramps;
+pub mod switch_window;
 pub mod vol;
 pub mod wire;
 
+pub use capacity::DEFAULT_INLETS;
 pub use command::Command;
 pub use config::{Config, ConfigError, Machine};
 pub use executor::{Executor, Fault, Report, RunState};
 pub use outputs::{Axis, Outputs, RecordingOutputs};
 pub use real::Real;
 pub use vol::Vol;
-
-/// Most inlets (valves and materials) one build of the core supports by default.
-pub const DEFAULT_INLETS: usize = 4;

@@ -2,6 +2,7 @@
 //! inlet, driver enable. The firmware implements it on pins; `RecordingOutputs` records
 //! what was commanded for tests and simulation.
 
+use crate::capacity::MAX_CONFIG_INLETS;
 use serde::{Deserialize, Serialize};
 
 /// A motion axis: the head's X, Y, Z, or the plunger of syringe inlet i (`E(i)`).
@@ -18,7 +19,20 @@ pub enum Axis {
 }
 
 /// Axes an `Outputs` may see: X, Y, Z and one plunger per possible inlet.
-pub const AXES: usize = 3 + crate::config::MAX_CONFIG_INLETS;
+pub const AXES: usize = 3 + MAX_CONFIG_INLETS;
+
+/// Drives `out` to the one safe state: every valve a config can name closed (not only
+/// the inlets of the machine loaded: a valve past them may have been opened by an
+/// earlier config, a valve test or a stray write), drivers off. Idempotent. The
+/// executor's faults and aborts come here, and so do the device's power-up, e-stop and
+/// halts (`device::force_safe`) and the firmware's panic handler, on an `Outputs` that
+/// writes the pins' registers directly.
+pub fn force_safe(out: &mut impl Outputs) {
+    for i in 0..MAX_CONFIG_INLETS {
+        out.valve(i as u8, false);
+    }
+    out.drivers(false);
+}
 
 impl Axis {
     /// The head's axes in index order.

@@ -26,6 +26,11 @@ pub const STEP_CAPACITY: usize = 4;
 /// motion's read up to 2 either way.
 const STEP_MIN: i32 = 4;
 
+impl StepRamps {
+    /// The largest second difference (position units a cycle^2) that is no step.
+    pub const UNSEEN: i32 = STEP_MIN;
+}
+
 /// Frames within which a second step joins the previous one's window (a step the flow
 /// model spreads over two cycles).
 const JOIN_FRAMES: u32 = 2;
@@ -232,7 +237,8 @@ impl StepRamps {
     /// step is kept.
     #[inline(always)]
     fn m(&self, now: u32, at: u32) -> i32 {
-        (now.wrapping_sub(at) & (crate::ramp::RAMP_CAPACITY as u32 - 1)) as i32 - self.half_max + 1
+        (now.wrapping_sub(at) & (crate::capacity::RAMP_CAPACITY as u32 - 1)) as i32 - self.half_max
+            + 1
     }
 
     /// Whether any step is being re-ramped.
@@ -242,11 +248,13 @@ impl StepRamps {
     }
 
     /// What to take off the ring's X/Y mean, position units, `now` the newest frame's
-    /// ring index. Out of line: only while a step passes the outputs.
+    /// ring index, the mean over `2 box_half + 1` frames centred on the outputs' (the
+    /// ring's window, or what a switch narrowed it to: `crate::switch_window`). Out of
+    /// line: only while a step passes the outputs.
     #[inline(never)]
-    pub fn offset<R: Real>(&self, now: u32) -> [R; 2] {
+    pub fn offset<R: Real>(&self, now: u32, box_half: u32) -> [R; 2] {
         let mut o = [R::ZERO; 2];
-        let big = self.half_max;
+        let big = box_half as i32;
         for s in &self.steps[..self.len as usize] {
             let m = self.m(now, s.at);
             let f = e::<R>(m, big) - e::<R>(m, s.half);

@@ -135,6 +135,28 @@ fn plungers_are_not_jogged_and_say_why() {
     }
 }
 
+/// The board names every kind of config problem in its refusal (`Problem::name`): a
+/// machine mixing syringes and valves used to come back as "invalid".
+#[test]
+fn a_config_mixing_syringes_and_valves_is_refused_by_name() {
+    let mut b = board();
+    let mut h = Host::default();
+    h.hello(&mut b);
+    let mut cfg: Config = config();
+    cfg.inlets[0].syringe = Some(dollop::config::SyringeConfig {
+        steps_per_mm3: 100.0,
+        lag_k: 5.0,
+        lag_n: 1.0,
+    });
+    let e = cfg.validate::<f32, 4>().unwrap_err();
+    assert_eq!(e.problem, dollop::config::Problem::MixedDrives, "{e}");
+    match h.refused(&mut b, &Request::LoadConfig(cfg)) {
+        Refusal::Config(t) => assert_eq!(t, "inlet[0].syringe: mixes syringe and pneumatic inlets"),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(h.status(&mut b).config, None);
+}
+
 #[test]
 fn a_config_for_another_control_rate_is_refused() {
     let mut b = board();

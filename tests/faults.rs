@@ -374,3 +374,37 @@ fn e_stop_abort_and_pause() {
     assert!(done);
     assert_eq!(out.valves, 0);
 }
+
+/// The executor's safe state is the device's (`outputs::force_safe`): a fault, an abort
+/// and every faulted cycle close each valve a config can name, not only the inlets of
+/// the machine loaded. A valve past them can be open (left by an earlier config with
+/// more inlets, or a valve test); closing only `inlet_count` valves left it open.
+#[test]
+fn faults_and_aborts_close_valves_beyond_the_machines_inlets() {
+    let mut ex = executor("seed-paper-valves.toml");
+    let inlets = ex.machine().inlet_count();
+    let beyond = dollop::config::MAX_CONFIG_INLETS - 1;
+    assert!(inlets <= beyond, "seed-paper-valves has {inlets} inlets");
+    let stray = || RecordingOutputs {
+        valves: 1 << beyond | 1 << inlets,
+        drivers: true,
+        ..Default::default()
+    };
+
+    let mut out = stray();
+    ex.abort(&mut out);
+    assert_safe(&out, "abort with a valve beyond the machine's inlets");
+
+    let mut ex = executor("seed-paper-valves.toml");
+    let mut out = stray();
+    ex.fault(Fault::EStop, &mut out);
+    assert_safe(&out, "e-stop with a valve beyond the machine's inlets");
+    // Held every cycle while faulted, whatever else touched the pins.
+    out.valves = 1 << beyond;
+    out.drivers = true;
+    assert_eq!(ex.tick(0, &mut out).unwrap_err(), Fault::EStop);
+    assert_safe(
+        &out,
+        "a faulted cycle with a valve beyond the machine's inlets",
+    );
+}

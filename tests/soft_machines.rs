@@ -71,32 +71,47 @@ fn board() -> dollop_sim::Job {
     job(&fill(24.0, 16, 1), chessboard(4.0))
 }
 
+/// Each valve decision sizes its own ramp window from the channel's contents then
+/// (`dollop::switch_window`): on the 4 mm board, with one paste in the channel at each
+/// decision, 83 cycles for paste B opening into paste A (the rise overtaking A's decay
+/// at 542 mm/s^2), 21 for B closing and for a bead's end, none at a bead's start; never
+/// under what keeps a velocity step too small for `dollop::step_ramps` within the limit
+/// (85 cycles at 500 mm/s^2, 43 at 1 000; at 2 000 the flow needs no window at all). At 500 the machine's one window
+/// (415 cycles) smeared every change, 18.9 % off over 0.2 mm. Measured now (section off
+/// over 0.2 mm, X / Y peak): 500: 0.979 %, 431 / 256 mm/s^2; 1 000: 0.275 %, 473 / 492;
+/// 2 000: 0.030 %, 824 / 988. Each is pinned a little above what it measured, and
+/// every axis within its limit with no slack (the held-out check allows 1.1 times).
 #[test]
 fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
-    for a in [1000.0f32, 2000.0] {
+    for (a, within) in [(500.0f32, 0.01), (1000.0, 0.004), (2000.0, 0.0006)] {
         let cfg = soft(a, false);
-        let (section, bound, _, _) = assert_soft(
-            &format!("chessboard/real valves {a}"),
-            &cfg,
-            &run(&cfg, &board()),
-        );
+        let name = format!("chessboard/real valves {a}");
+        let r = run(&cfg, &board());
+        let (section, bound, _, _) = assert_soft(&name, &cfg, &r);
         // Real valves ramp the flow themselves: no step forces more than 1 %.
         assert_eq!(bound, dollop::config::SECTION_BAND, "{a}");
-        assert!(section <= 0.01, "{a}: {section}");
+        assert!(section <= within, "{a}: {section}");
+        assert_axes_within(&name, &cfg.validate::<f64, 4>().unwrap(), &r, 1.0);
     }
 }
 
-/// Known limit at 500 mm/s^2: paste B's line closing into a channel full of paste A
-/// slows the head at up to 1 124 mm/s^2, so the one ramp window the machine has must be
-/// 44.6 ms long, and every other change of the flow is smeared over it too: the axes keep
-/// their limit, the section does not keep 1 % (measured 18.9 % off over 0.2 mm here, 15.4 %
-/// on the 48 px chessboard PNG as sliced). Windows
-/// sized per change of the flow would keep both; this measures the limit until then.
+/// Known limit at 500 mm/s^2: features shorter than the channel (0.6 mm stripes) switch
+/// with several pastes in it, whose moving boundaries change the flow on top of what the
+/// valves do, so each decision keeps the machine's window (415 cycles, sized for paste B
+/// closing into a channel full of paste A at up to 1 124 mm/s^2), which smears the
+/// flow's every change: the axes keep their limit, the section does not keep 1 %
+/// (measured 30.8 % off over 0.2 mm, X 402 Y 250 mm/s^2; sized as if the channel held one
+/// paste, 2.5 % but 685 mm/s^2). This measures the limit until windows account for the
+/// contents' motion.
 #[test]
-fn real_valves_at_500_keep_the_limit_and_the_known_section_cost() {
+fn real_valves_at_500_keep_the_limit_and_the_known_section_cost_on_short_features() {
     let cfg = soft(500.0, false);
-    let r = run(&cfg, &board());
-    summary("chessboard/real valves 500", &r);
+    let f = Fill {
+        cell_mm: 0.1,
+        ..fill(9.0, 4, 1)
+    };
+    let r = run(&cfg, &job(&f, stripes(0.6)));
+    summary("short features/real valves 500", &r);
     assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
     assert!(
         r.metrics.mismatches.is_empty(),
@@ -105,15 +120,11 @@ fn real_valves_at_500_keep_the_limit_and_the_known_section_cost() {
     );
     assert!(r.metrics.worst_boundary() <= 0.05);
     for a in 0..2 {
-        assert!(
-            r.axis_accel[a] <= 500.0 * ACCEL_SLACK,
-            "axis {a}: {}",
-            r.axis_accel[a]
-        );
+        assert!(r.axis_accel[a] <= 500.0, "axis {a}: {}", r.axis_accel[a]);
     }
     let section = r.metrics.worst_section_long();
     assert!(
-        section <= 0.2,
+        section <= 0.32,
         "section off by {:.2} % over 0.2 mm",
         section * 100.0
     );

@@ -6,6 +6,7 @@ pub mod cmd;
 pub mod config_apply;
 pub mod figure;
 pub mod fixtures;
+pub mod gcode_in;
 pub mod inspect;
 pub mod link;
 pub mod serve;

@@ -254,3 +254,23 @@ fn the_link_benchmark_reports_its_figures() {
     eprintln!("{r}");
     assert!(r.contains("frames/s") && !r.contains("failed"), "{r}");
 }
+
+/// Homing waited out as one typed operation (`link::ops::home_and_wait`, what `dollop
+/// send` and `dollop jog --home` run): refused without a config, at rest and homed after,
+/// and a halt comes back as a value carrying the board's status.
+#[test]
+fn homing_is_waited_out_and_a_halt_is_typed() {
+    use dollop_host::link::ops::{self, WaitError};
+    let mut c = client(Faults::default(), 31);
+    c.connect().unwrap();
+    let e = ops::home_and_wait(&mut c).unwrap_err();
+    assert!(matches!(e, WaitError::Link(LinkError::Refused(_))), "{e}");
+    c.command(&Request::LoadConfig(config())).unwrap();
+    let s = ops::home_and_wait(&mut c).unwrap();
+    assert!(s.control.homed && s.control.mode == Mode::Idle, "{s:?}");
+    c.command(&Request::EStop).unwrap();
+    match ops::wait_idle(&mut c, std::time::Duration::from_secs(1)) {
+        Err(WaitError::Halted(s)) => assert_eq!(s.control.mode, Mode::Halted),
+        other => panic!("{other:?}"),
+    }
+}

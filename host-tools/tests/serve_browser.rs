@@ -192,6 +192,42 @@ fn cube_3mf(path: &Path) {
     threemf::write(f, model).expect("cannot write the 3MF");
 }
 
+/// Board 0's elapsed time stands still over a second (the print has stopped).
+async fn stopped_clock(c: &Client, what: &str) {
+    let a = board_field(c, "elapsed").await;
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    let b = board_field(c, "elapsed").await;
+    assert!(!a.is_empty() && a != "0", "{what}: elapsed {a}");
+    assert_eq!(a, b, "{what}: the elapsed time went on");
+}
+
+/// Presses the mouse on `css`, holds it `ms`, releases it.
+async fn held_click(c: &Client, css: &str, ms: u64) {
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let e = c
+        .find(Locator::Css(css))
+        .await
+        .unwrap_or_else(|e| panic!("no {css} on the page: {e}"));
+    let press = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: e,
+            duration: None,
+            x: 0.0,
+            y: 0.0,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Pause {
+            duration: Duration::from_millis(ms),
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(press).await.expect("a held click");
+    c.release_actions().await.expect("release");
+}
+
 /// A board's data attribute (`activity`, `progress`, `seq`).
 async fn field_of(c: &Client, board: usize, key: &str) -> String {
     js(
@@ -223,15 +259,20 @@ fn dashboard_in_a_real_browser() {
 
 async fn run() {
     let _ = std::fs::remove_file(shots_dir().join("failure.png"));
-    // The server, in-process, on a free port; the simulated board 3 times real time.
+    // The server, in-process, on a free port; the simulated board 3 times real time; its
+    // data folder (the print history) read again by a second server at the end.
+    let data = tempfile::tempdir().expect("data folder");
     let server = serve::start(serve::Args {
         listen: "127.0.0.1:0".parse().expect("address"),
+        port: None,
+        auth: None,
         config: None,
         boards: Vec::new(),
         demo: false,
         sim_speed: 3.0,
         no_usb: true,
         sim_boards: 2,
+        data: Some(data.path().to_path_buf()),
     })
     .await
     .expect("server starts");
@@ -276,8 +317,66 @@ async fn run() {
     c.close().await.expect("the browser closes");
     let c = session(&url, &caps).await;
     let result = tokio::time::timeout(Duration::from_secs(200), reopened(&c, &base, before)).await;
+    let guarded = tokio::time::timeout(Duration::from_secs(60), signed_in(&c, data.path())).await;
     let _ = c.close().await;
     result.expect("following the print in a new browser took over 200 s");
+    guarded.expect("the --auth check took over 60 s");
+}
+
+/// A dashboard started with `--auth`: the browser is sent to the sign-in form, a wrong
+/// key is refused (and the API with it), the right one opens the dashboard.
+async fn signed_in(c: &Client, data: &Path) {
+    let server = serve::start(serve::Args {
+        listen: "127.0.0.1:0".parse().expect("address"),
+        port: None,
+        auth: Some("browser key 1".into()),
+        config: None,
+        boards: Vec::new(),
+        demo: false,
+        sim_speed: 1.0,
+        no_usb: true,
+        sim_boards: 1,
+        data: Some(data.to_path_buf()),
+    })
+    .await
+    .expect("the guarded server starts");
+    let base = format!("http://{}/", server.addr);
+    c.goto(&base).await.expect("open the guarded dashboard");
+    let url = c.current_url().await.expect("url");
+    assert!(url.path() == "/login", "not sent to sign in: {url}");
+    let status = js(c, &format!("fetch('{base}api/info').then(r => r.status)")).await;
+    assert_eq!(status, json!(401), "the API without the key");
+    let key = c.find(Locator::Id("key")).await.expect("the key field");
+    key.send_keys("wrong key 1").await.expect("type");
+    click(c, "#sign-in").await;
+    wait_for(
+        c,
+        "document.getElementById('refused')",
+        10,
+        "a wrong key refused",
+    )
+    .await;
+    let key = c.find(Locator::Id("key")).await.expect("the key field");
+    key.send_keys("browser key 1").await.expect("type");
+    click(c, "#sign-in").await;
+    wait_for(
+        c,
+        "document.querySelectorAll('.field').length > 10",
+        20,
+        "the dashboard, signed in",
+    )
+    .await;
+    wait_for(
+        c,
+        "document.querySelector('.board[data-board=\"0\"]')?.dataset.activity",
+        20,
+        "the status stream, signed in",
+    )
+    .await;
+    // The same data folder: the first server's prints are in this one's history.
+    click(c, "#nav-print").await;
+    wait_for(c, "document.querySelectorAll('#history tr[data-outcome=\"finished\"]').length >= 2 && document.querySelectorAll('#history tr[data-outcome=\"aborted\"]').length >= 1", 20, "the history read back by a new server").await;
+    shot(c, "history.png").await;
 }
 
 /// A WebDriver session (a fresh browser), retried while chromedriver starts.
@@ -475,6 +574,11 @@ async fn pages(c: &Client, base: &str) -> f64 {
 
     // Simulate: progress, then the report and the heatmap.
     click(c, "#nav-simulate").await;
+    // No broken-picture icon before a run.
+    assert_eq!(
+        js(c, "document.getElementById('heatmap').hidden").await,
+        json!(true)
+    );
     click(c, "#simulate").await;
     wait_for(
         c,
@@ -501,6 +605,20 @@ async fn pages(c: &Client, base: &str) -> f64 {
     wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"0\"]')?.dataset.activity)", 30, "the simulated board, connected").await;
     // A second simulated board: listed with its own state and an empty queue.
     wait_for(c, "['idle', 'unconfigured'].includes(document.querySelector('.board[data-board=\"1\"]')?.dataset.activity)", 30, "the second simulated board").await;
+    // An idle board: nothing to pause or resume, and the buttons say so on hover.
+    for action in ["pause", "resume", "park", "start-next"] {
+        let sel = format!(".board[data-board=\"0\"] button[data-action=\"{action}\"]");
+        let state = js(
+            c,
+            &format!("(b => b.disabled && b.title)(document.querySelector('{sel}'))"),
+        )
+        .await;
+        assert!(
+            state.as_str().is_some_and(|t| !t.is_empty()),
+            "{action} on an idle board: {state}"
+        );
+    }
+    assert_eq!(js(c, "document.querySelector('.board[data-board=\"0\"] button[data-action=\"abort\"]').disabled").await, json!(false));
     click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
     let t = Instant::now();
     let mut progress_seen = std::collections::BTreeSet::new();
@@ -557,11 +675,52 @@ async fn pages(c: &Client, base: &str) -> f64 {
     if !shot_taken {
         shot(c, "print.png").await;
     }
+    // Finished: every command done, the clock stopped, print controls off.
+    let line = js(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .job-line').textContent",
+    )
+    .await;
+    let line = line.as_str().unwrap_or_default().to_string();
+    let counts: Vec<&str> = line
+        .split(['(', ' '])
+        .filter(|w| w.chars().all(|c| c.is_ascii_digit()) && !w.is_empty())
+        .collect();
+    assert!(
+        counts.len() >= 2 && counts[0] == counts[1],
+        "a finished job: {line}"
+    );
+    stopped_clock(c, "finished").await;
+    assert_eq!(board_field(c, "eta").await, "0");
+    assert_eq!(js(c, "document.querySelector('.board[data-board=\"0\"] button[data-action=\"pause\"]').disabled").await, json!(true));
 
     // Pause, resume, abort: the same job again (queued behind the finished one, started by
     // Start next once the plate is clear).
     click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
     wait_for(c, "document.querySelector('.board[data-board=\"0\"] .queue').textContent.includes('chessboard')", 20, "the job queued").await;
+    // A second copy queued, then removed by a click held 200 ms (as a person clicks)
+    // while the status streams ten times a second.
+    click(c, ".board[data-board=\"0\"] button[data-action=\"send\"]").await;
+    wait_for(
+        c,
+        "document.querySelectorAll('.board[data-board=\"0\"] .queue .unqueue').length === 2",
+        20,
+        "two jobs queued",
+    )
+    .await;
+    held_click(
+        c,
+        ".board[data-board=\"0\"] .queue .queued:last-child .unqueue",
+        200,
+    )
+    .await;
+    wait_for(
+        c,
+        "document.querySelectorAll('.board[data-board=\"0\"] .queue .unqueue').length === 1",
+        20,
+        "the second job removed by a held click",
+    )
+    .await;
     click(
         c,
         ".board[data-board=\"0\"] button[data-action=\"start-next\"]",
@@ -606,6 +765,29 @@ async fn pages(c: &Client, base: &str) -> f64 {
     .await;
     let p_abort: f64 = board_field(c, "progress").await.parse().unwrap_or(1.0);
     assert!(p_abort < 1.0, "aborted at {p_abort}");
+    // Aborted: the clock stops, no ETA, no speed, the print controls off.
+    stopped_clock(c, "aborted").await;
+    assert_eq!(board_field(c, "eta").await, "");
+    let live = js(
+        c,
+        "document.querySelector('.board[data-board=\"0\"] .live').textContent",
+    )
+    .await;
+    assert!(
+        live.as_str().unwrap_or_default().contains(" 0.0 mm/s"),
+        "after abort: {live}"
+    );
+    assert_eq!(js(c, "document.querySelector('.board[data-board=\"0\"] button[data-action=\"resume\"]').disabled").await, json!(true));
+    // The history lists the two finished prints and the aborted one.
+    wait_for(c, "document.querySelectorAll('#history tr[data-outcome=\"finished\"]').length === 2 && document.querySelectorAll('#history tr[data-outcome=\"aborted\"]').length === 1", 20, "the history of board 0").await;
+    assert_eq!(
+        js(
+            c,
+            "document.querySelector('.board[data-board=\"0\"] .board-msg').textContent"
+        )
+        .await,
+        json!("")
+    );
 
     // A second tab sees the board but may not command it until it takes control.
     let first = c.window().await.expect("this window");
@@ -622,6 +804,13 @@ async fn pages(c: &Client, base: &str) -> f64 {
         "the board's state in the second tab",
     )
     .await;
+    // A fresh page (as a reload): the same stopped status, no message left from before.
+    stopped_clock(c, "aborted, seen from a fresh page").await;
+    assert_eq!(
+        js(c, "lastBoards.boards[0].message").await,
+        Value::Null,
+        "a stale message"
+    );
     click(c, ".board[data-board=\"0\"] button[data-action=\"home\"]").await;
     let refused = wait_for(c, "document.getElementById('toast').textContent.includes('another tab') && document.getElementById('toast').textContent", 20, "the second tab refused").await;
     eprintln!("second tab: {refused}");
@@ -657,6 +846,19 @@ async fn pages(c: &Client, base: &str) -> f64 {
     // Calibrate: the bundled puree flow curve is fitted, and its fragment applied to
     // inlet 0 of the config in the editor.
     click(c, "#nav-calibrate").await;
+    // Before any fit: no broken picture, and the bundled samples offered for the fit.
+    assert_eq!(
+        js(c, "document.getElementById('cal-plot').hidden").await,
+        json!(true)
+    );
+    let samples = js(c, "Array.from(document.querySelectorAll('#cal-sample option')).map(o => o.textContent).join(' ')").await;
+    assert!(
+        samples
+            .as_str()
+            .unwrap_or_default()
+            .contains("rheology-puree.csv"),
+        "{samples}"
+    );
     let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/calibration/rheology-puree.csv");
     c.find(Locator::Id("cal-file"))
         .await
@@ -872,5 +1074,48 @@ async fn pages(c: &Client, base: &str) -> f64 {
     click(c, "#nav-print").await;
     click(c, ".board[data-board=\"1\"] button[data-action=\"send\"]").await;
     wait_for(c, "document.querySelector('.board[data-board=\"1\"]').dataset.activity === 'printing' && Number(document.querySelector('.board[data-board=\"1\"]').dataset.progress) > 0.05", 60, "board 1 printing").await;
+    phone(c).await;
     field_of(c, 1, "progress").await.parse().unwrap_or(0.0)
+}
+
+/// At a phone's width (390 px) while board 1 prints: no page scrolls sideways, and its
+/// Abort is on screen on every page (in the header) and on the Print page (on its card).
+async fn phone(c: &Client) {
+    c.set_window_size(390, 844).await.expect("phone width");
+    wait_for(
+        c,
+        "window.innerWidth <= 400",
+        10,
+        "the window at phone width",
+    )
+    .await;
+    // On screen: inside the viewport's width and height (the header stays on top).
+    let on_screen = |css: &str| {
+        format!("(e => {{ if (!e) return false; const r = e.getBoundingClientRect(); return r.width > 0 && r.left >= 0 && r.right <= window.innerWidth && r.top >= 0 && r.bottom <= window.innerHeight; }})(document.querySelector('{css}'))")
+    };
+    for page in ["design", "simulate", "calibrate", "print"] {
+        click(c, &format!("#nav-{page}")).await;
+        let widths = js(
+            c,
+            "[document.documentElement.scrollWidth, window.innerWidth]",
+        )
+        .await;
+        eprintln!("{page} at phone width: page and window widths {widths}");
+        assert!(
+            widths[0].as_f64() <= widths[1].as_f64(),
+            "{page} scrolls sideways: {widths}"
+        );
+        let abort = on_screen("#header-boards .badge[data-board=\"1\"] .abort-now");
+        assert_eq!(
+            js(c, &abort).await,
+            json!(true),
+            "{page}: the header's Abort for board 1 off screen"
+        );
+        shot(c, &format!("phone-{page}.png")).await;
+    }
+    // The card's own print controls: scrolled to, within the width (no sideways scroll).
+    js(c, "(document.querySelector('.board[data-board=\"1\"] button[data-action=\"abort\"]').scrollIntoView({block: 'center'}), true)").await;
+    let abort = on_screen(".board[data-board=\"1\"] button[data-action=\"abort\"]");
+    assert_eq!(js(c, &abort).await, json!(true), "the card's Abort");
+    c.set_window_size(1400, 1000).await.expect("desktop width");
 }

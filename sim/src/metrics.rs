@@ -105,6 +105,11 @@ pub struct Metrics {
     pub off_path_volume: f64,
     /// Landed material runs shorter than the sliver length, merged away.
     pub slivers: u64,
+    /// Per bead (in order): bead-equivalent length of paste that landed at its start
+    /// before the design's first material did, mm (0 when it started right). A bead that
+    /// starts in another material than the last one ended in is where a G-code firmware
+    /// lands the channel's old content; slivers are not merged away here.
+    pub bead_starts: Vec<(usize, f64)>,
 }
 
 impl Metrics {
@@ -374,6 +379,15 @@ impl Meter {
         }
         self.recent.clear();
         let design = &self.beads[bi];
+        let first = design.runs[0].1;
+        if let Some(&(s0, _)) = trace.landed.first() {
+            let right = trace
+                .landed
+                .iter()
+                .find(|r| r.1 == first)
+                .map_or(trace.s + trace.extra, |r| r.0);
+            self.metrics.bead_starts.push((bi, right - s0));
+        }
         // Merge slivers.
         let mut runs: Vec<(f64, u8)> = Vec::new();
         for (k, &(s, m)) in trace.landed.iter().enumerate() {

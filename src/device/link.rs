@@ -10,10 +10,12 @@ use crate::command::Command;
 use crate::config::Config;
 use crate::executor::RunState;
 use crate::job::{self, BodyDecoder, JobHeader};
+use crate::outputs::Axis;
 use crate::wire::frame::Event;
 use crate::wire::{
     self, seq_after, text, DeviceHeader, FrameReader, HelloInfo, HostHeader, JobFailure, JobId,
-    JobSlot, Mode, Refusal, Reply, Request, Settings, Status, MAX_CHUNK, PROTOCOL_VERSION, WINDOW,
+    JobSlot, Mode, Refusal, Reply, Request, Settings, Snapshot, Status, MAX_CHUNK,
+    PROTOCOL_VERSION, WINDOW,
 };
 use heapless::Deque;
 
@@ -541,214 +543,208 @@ impl<S: JobStore> Core<S> {
         }
     }
 
+    /// One request, one method: the dispatcher reads the control loop's snapshot once and
+    /// hands it on; each method checks what its request needs and orders the control loop.
     #[inline(never)] // keeps the board's link frames small (see `receive`)
     fn act(&mut self, req: Request<'_>, port: &mut impl ToControl) -> Result<Reply, Refusal> {
         let snap = port.snapshot();
-        let halted = || match snap.halt {
-            Some(h) if snap.mode == Mode::Halted => Err(Refusal::Halted(h)),
-            _ => Ok(()),
-        };
         match req {
             Request::Hello { .. } | Request::Chunk { .. } => Ok(Reply::Ack),
             Request::Status => Ok(Reply::Status(self.status(port))),
-            Request::LoadConfig(c) => {
-                if let Some(r) = self.snapshot_busy(port) {
-                    return Err(r);
-                }
-                let machine = match c.validate::<f32, { crate::DEFAULT_INLETS }>() {
-                    Ok(m) => m,
-                    Err(e) => {
-                        // The field and the kind of problem, without numbers: formatting floats
-                        // costs the chip 15 KiB of flash, and the host names the values.
-                        return Err(Refusal::Config(text(format_args!(
-                            "{}: {}",
-                            e.field,
-                            problem_name(&e.problem)
-                        ))));
-                    }
-                };
-                if c.motion.max_step_rate_hz.is_nan()
-                    || c.motion.max_step_rate_hz > self.info.max_step_hz
-                {
-                    return Err(Refusal::Config(text(format_args!(
-                        "motion.max_step_rate_hz: above the {} steps/s this board makes",
-                        self.info.max_step_hz as u32
-                    ))));
-                }
-                if c.control.rate_hz != self.info.control_hz {
-                    return Err(Refusal::Config(text(format_args!(
-                        "control.rate_hz: this board's control loop runs at {} Hz",
-                        self.info.control_hz
-                    ))));
-                }
-                if !port.post_config(&machine) {
-                    return Err(Refusal::QueueFull);
-                }
-                order(port, Order::LoadConfig)?;
-                self.config_hash = Some(job::config_hash(&c));
-                self.config = Some(c);
-                Ok(Reply::Ack)
-            }
-            Request::Settings(s) => {
-                s.check().map_err(Refusal::Settings)?;
-                order(port, Order::Settings(s))?;
-                self.settings = s;
-                Ok(Reply::Ack)
-            }
+            Request::LoadConfig(c) => self.load_config(c, port),
+            Request::Settings(s) => self.settings(s, port),
             Request::BeginJob(h) => self.begin_job(h, port),
             Request::EndJob => self.end_job(),
-            Request::Start => {
-                halted()?;
-                if snap.estop {
-                    return Err(Refusal::EStopActive);
-                }
-                let (header, _) = match &self.upload {
-                    Upload::Ready { header, segments } => (header.clone(), *segments),
-                    Upload::Failed { why, .. } => return Err(Refusal::Job(*why)),
-                    _ => return Err(Refusal::NoJob),
-                };
-                let Some(hash) = self.config_hash else {
-                    return Err(Refusal::NoConfig);
-                };
-                if hash != header.config_hash {
-                    return Err(Refusal::ConfigMismatch {
-                        job: header.config_hash,
-                        device: hash,
-                    });
-                }
-                if snap.mode != Mode::Idle {
-                    return Err(Refusal::Busy { mode: snap.mode });
-                }
-                if !snap.homed {
-                    return Err(Refusal::NotHomed);
-                }
-                let epoch = self.epoch.wrapping_add(1);
-                order(
-                    port,
-                    Order::Start {
-                        epoch,
-                        start_um: header.start_um,
-                        initial_material: header.initial_material,
-                    },
-                )?;
-                self.epoch = epoch;
-                self.fed = 0;
-                self.feeder = Some(Feeder {
-                    epoch,
-                    decoder: BodyDecoder::new(&header),
-                    offset: 0,
-                    len: header.body_len,
-                    pending: Deque::new(),
-                    fed: 0,
-                    seen_running: false,
-                });
-                Ok(Reply::Ack)
-            }
-            Request::Pause => {
-                order(port, Order::Pause)?;
-                Ok(Reply::Ack)
-            }
-            Request::Park => {
-                order(port, Order::Park)?;
-                Ok(Reply::Ack)
-            }
-            Request::Refill => {
-                halted()?;
-                if snap.mode != Mode::Job || snap.run != RunState::Paused {
-                    return Err(Refusal::NotPaused { run: snap.run });
-                }
-                order(port, Order::Refill)?;
-                Ok(Reply::Ack)
-            }
-            Request::Resume => {
-                halted()?;
-                if snap.mode != Mode::Job
-                    || !matches!(snap.run, RunState::Paused | RunState::Pausing)
-                {
-                    return Err(Refusal::NotPaused { run: snap.run });
-                }
-                order(port, Order::Resume)?;
-                Ok(Reply::Ack)
-            }
-            Request::Abort => {
-                order(port, Order::Abort)?;
-                self.feeder = None;
-                Ok(Reply::Ack)
-            }
-            Request::EStop => {
-                order(port, Order::EStop)?;
-                self.feeder = None;
-                Ok(Reply::Ack)
-            }
-            Request::ClearFault => {
-                if snap.estop {
-                    return Err(Refusal::EStopActive);
-                }
-                order(port, Order::ClearFault)?;
-                Ok(Reply::Ack)
-            }
-            Request::Home => {
-                halted()?;
-                if self.config.is_none() {
-                    return Err(Refusal::NoConfig);
-                }
-                self.not_uploading()?;
-                if snap.mode != Mode::Idle {
-                    return Err(Refusal::Busy { mode: snap.mode });
-                }
-                order(port, Order::Home)?;
-                Ok(Reply::Ack)
-            }
-            Request::Jog { axis, um } => {
-                halted()?;
-                let Some(c) = &self.config else {
-                    return Err(Refusal::NoConfig);
-                };
-                let a = axis.index();
-                if a >= 3 {
-                    return Err(Refusal::NotJoggable { axis });
-                }
-                self.not_uploading()?;
-                if snap.mode != Mode::Idle {
-                    return Err(Refusal::Busy { mode: snap.mode });
-                }
-                if !snap.homed {
-                    return Err(Refusal::NotHomed);
-                }
-                let min_um = mm_to_um(c.motion.travel_min_mm[a]);
-                let max_um = mm_to_um(c.motion.travel_max_mm[a]);
-                let target_um = snap.position_um[a].saturating_add(um);
-                if target_um < min_um || target_um > max_um {
-                    return Err(Refusal::SoftLimit {
-                        axis,
-                        target_um,
-                        min_um,
-                        max_um,
-                    });
-                }
-                order(port, Order::Jog { axis, um })?;
-                Ok(Reply::Ack)
-            }
-            Request::Valve { inlet, open } => {
-                halted()?;
-                let Some(c) = &self.config else {
-                    return Err(Refusal::NoConfig);
-                };
-                let inlets = c.inlets.len().min(crate::DEFAULT_INLETS) as u8;
-                if inlet >= inlets {
-                    return Err(Refusal::NoSuchInlet { inlet, inlets });
-                }
-                if open {
-                    // Closing is always allowed: it is the safe direction.
-                    self.not_uploading()?;
-                }
-                if !matches!(snap.mode, Mode::Idle | Mode::ValveTest) {
-                    return Err(Refusal::Busy { mode: snap.mode });
-                }
-                order(port, Order::Valve { inlet, open })?;
-                Ok(Reply::Ack)
-            }
+            Request::Start => self.start(&snap, port),
+            Request::Pause => ack(port, Order::Pause),
+            Request::Park => ack(port, Order::Park),
+            Request::Refill => refill(&snap, port),
+            Request::Resume => resume(&snap, port),
+            Request::Abort => self.stop(port, Order::Abort),
+            Request::EStop => self.stop(port, Order::EStop),
+            Request::ClearFault => clear_fault(&snap, port),
+            Request::Home => self.home(&snap, port),
+            Request::Jog { axis, um } => self.jog(&snap, axis, um, port),
+            Request::Valve { inlet, open } => self.valve(&snap, inlet, open, port),
         }
+    }
+
+    /// Validates a config as the control loop will run it, checks it against this board,
+    /// and hands the machine over.
+    fn load_config(&mut self, c: Config, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+        if let Some(r) = self.snapshot_busy(port) {
+            return Err(r);
+        }
+        let machine = match c.validate::<f32, { crate::DEFAULT_INLETS }>() {
+            Ok(m) => m,
+            Err(e) => {
+                // The field and the kind of problem, without numbers: formatting floats
+                // costs the chip 15 KiB of flash, and the host names the values.
+                return Err(Refusal::Config(text(format_args!(
+                    "{}: {}",
+                    e.field,
+                    e.problem.name()
+                ))));
+            }
+        };
+        if c.motion.max_step_rate_hz.is_nan() || c.motion.max_step_rate_hz > self.info.max_step_hz {
+            return Err(Refusal::Config(text(format_args!(
+                "motion.max_step_rate_hz: above the {} steps/s this board makes",
+                self.info.max_step_hz as u32
+            ))));
+        }
+        if c.control.rate_hz != self.info.control_hz {
+            return Err(Refusal::Config(text(format_args!(
+                "control.rate_hz: this board's control loop runs at {} Hz",
+                self.info.control_hz
+            ))));
+        }
+        if !port.post_config(&machine) {
+            return Err(Refusal::QueueFull);
+        }
+        order(port, Order::LoadConfig)?;
+        self.config_hash = Some(job::config_hash(&c));
+        self.config = Some(c);
+        Ok(Reply::Ack)
+    }
+
+    fn settings(&mut self, s: Settings, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+        s.check().map_err(Refusal::Settings)?;
+        order(port, Order::Settings(s))?;
+        self.settings = s;
+        Ok(Reply::Ack)
+    }
+
+    /// Starts the uploaded job: it must be whole, made for the config loaded, and the
+    /// machine idle, homed and not stopped.
+    fn start(&mut self, snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+        halted(snap)?;
+        if snap.estop {
+            return Err(Refusal::EStopActive);
+        }
+        let (header, _) = match &self.upload {
+            Upload::Ready { header, segments } => (header.clone(), *segments),
+            Upload::Failed { why, .. } => return Err(Refusal::Job(*why)),
+            _ => return Err(Refusal::NoJob),
+        };
+        let Some(hash) = self.config_hash else {
+            return Err(Refusal::NoConfig);
+        };
+        if hash != header.config_hash {
+            return Err(Refusal::ConfigMismatch {
+                job: header.config_hash,
+                device: hash,
+            });
+        }
+        if snap.mode != Mode::Idle {
+            return Err(Refusal::Busy { mode: snap.mode });
+        }
+        if !snap.homed {
+            return Err(Refusal::NotHomed);
+        }
+        let epoch = self.epoch.wrapping_add(1);
+        order(
+            port,
+            Order::Start {
+                epoch,
+                start_um: header.start_um,
+                initial_material: header.initial_material,
+            },
+        )?;
+        self.epoch = epoch;
+        self.fed = 0;
+        self.feeder = Some(Feeder {
+            epoch,
+            decoder: BodyDecoder::new(&header),
+            offset: 0,
+            len: header.body_len,
+            pending: Deque::new(),
+            fed: 0,
+            seen_running: false,
+        });
+        Ok(Reply::Ack)
+    }
+
+    /// Abort or e-stop: ordered whatever the state, and the job's feeding ends.
+    fn stop(&mut self, port: &mut impl ToControl, o: Order) -> Result<Reply, Refusal> {
+        order(port, o)?;
+        self.feeder = None;
+        Ok(Reply::Ack)
+    }
+
+    fn home(&mut self, snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+        halted(snap)?;
+        if self.config.is_none() {
+            return Err(Refusal::NoConfig);
+        }
+        self.not_uploading()?;
+        if snap.mode != Mode::Idle {
+            return Err(Refusal::Busy { mode: snap.mode });
+        }
+        ack(port, Order::Home)
+    }
+
+    /// A jog of the head within the config's travel limits, once homed.
+    fn jog(
+        &mut self,
+        snap: &Snapshot,
+        axis: Axis,
+        um: i32,
+        port: &mut impl ToControl,
+    ) -> Result<Reply, Refusal> {
+        halted(snap)?;
+        let Some(c) = &self.config else {
+            return Err(Refusal::NoConfig);
+        };
+        let a = axis.index();
+        if a >= 3 {
+            return Err(Refusal::NotJoggable { axis });
+        }
+        self.not_uploading()?;
+        if snap.mode != Mode::Idle {
+            return Err(Refusal::Busy { mode: snap.mode });
+        }
+        if !snap.homed {
+            return Err(Refusal::NotHomed);
+        }
+        let min_um = mm_to_um(c.motion.travel_min_mm[a]);
+        let max_um = mm_to_um(c.motion.travel_max_mm[a]);
+        let target_um = snap.position_um[a].saturating_add(um);
+        if target_um < min_um || target_um > max_um {
+            return Err(Refusal::SoftLimit {
+                axis,
+                target_um,
+                min_um,
+                max_um,
+            });
+        }
+        ack(port, Order::Jog { axis, um })
+    }
+
+    /// A valve test on one of the config's inlets.
+    fn valve(
+        &mut self,
+        snap: &Snapshot,
+        inlet: u8,
+        open: bool,
+        port: &mut impl ToControl,
+    ) -> Result<Reply, Refusal> {
+        halted(snap)?;
+        let Some(c) = &self.config else {
+            return Err(Refusal::NoConfig);
+        };
+        let inlets = c.inlets.len().min(crate::DEFAULT_INLETS) as u8;
+        if inlet >= inlets {
+            return Err(Refusal::NoSuchInlet { inlet, inlets });
+        }
+        if open {
+            // Closing is always allowed: it is the safe direction.
+            self.not_uploading()?;
+        }
+        if !matches!(snap.mode, Mode::Idle | Mode::ValveTest) {
+            return Err(Refusal::Busy { mode: snap.mode });
+        }
+        ack(port, Order::Valve { inlet, open })
     }
 
     #[inline(never)] // keeps the board's link frames small (see `receive`)
@@ -787,7 +783,7 @@ impl<S: JobStore> Core<S> {
                 c.inlets.len()
             ))));
         }
-        for (a, axis) in crate::outputs::Axis::ALL.iter().enumerate() {
+        for (a, axis) in Axis::ALL.iter().enumerate() {
             let lo = mm_to_um(c.motion.travel_min_mm[a]);
             let hi = mm_to_um(c.motion.travel_max_mm[a]);
             let inside = |v: i32| v >= lo && v <= hi;
@@ -1051,24 +1047,44 @@ impl<S: JobStore> Core<S> {
     }
 }
 
-fn problem_name(p: &crate::config::Problem) -> &'static str {
-    use crate::config::Problem as P;
-    match p {
-        P::NotFinite => "not a finite number",
-        P::NotPositive(_) => "must be above zero",
-        P::Negative(_) => "must not be negative",
-        P::OutOfRange { .. } => "outside the accepted range",
-        P::TooManyInlets { .. } => "more inlets than this board supports",
-        P::NoInlets => "at least one inlet is needed",
-        P::EmptyTravel => "travel_min_mm must be below travel_max_mm",
-        P::RateNotDivisor(_) => "the rate must divide 1000000",
-        P::StepRate { .. } => "needs more steps/s than the drivers allow",
-        P::FlowTooFast { .. } => "the flow can push the head past the print-speed cap",
-        P::Above { .. } => "above its bound",
-        P::AutoPressure => "\"auto\" pressure could not be computed",
-        // Kinds added later: the host's own check of the config names them.
-        _ => "invalid",
+/// Refuses while the board is halted (a fault or an e-stop not yet cleared).
+fn halted(snap: &Snapshot) -> Result<(), Refusal> {
+    match snap.halt {
+        Some(h) if snap.mode == Mode::Halted => Err(Refusal::Halted(h)),
+        _ => Ok(()),
     }
+}
+
+/// Orders `o` and acknowledges.
+fn ack(port: &mut impl ToControl, o: Order) -> Result<Reply, Refusal> {
+    order(port, o)?;
+    Ok(Reply::Ack)
+}
+
+/// Refills a parked pause's syringes: only while paused.
+fn refill(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+    halted(snap)?;
+    if snap.mode != Mode::Job || snap.run != RunState::Paused {
+        return Err(Refusal::NotPaused { run: snap.run });
+    }
+    ack(port, Order::Refill)
+}
+
+/// Resumes a pause, or one still coming to rest.
+fn resume(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+    halted(snap)?;
+    if snap.mode != Mode::Job || !matches!(snap.run, RunState::Paused | RunState::Pausing) {
+        return Err(Refusal::NotPaused { run: snap.run });
+    }
+    ack(port, Order::Resume)
+}
+
+/// Clears a fault; never while the e-stop input is active.
+fn clear_fault(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> {
+    if snap.estop {
+        return Err(Refusal::EStopActive);
+    }
+    ack(port, Order::ClearFault)
 }
 
 fn order(port: &mut impl ToControl, o: Order) -> Result<(), Refusal> {

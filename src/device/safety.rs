@@ -1,19 +1,11 @@
-//! The one safe state of the outputs (every valve closed, drivers disabled), and an
-//! `Outputs` wrapper that remembers what was commanded (step position, valves, drivers)
-//! so the control loop knows where the machine is whoever moved it.
+//! The device's side of the safe state: an `Outputs` wrapper that remembers what was
+//! commanded (step position, valves, drivers) so the control loop knows where the
+//! machine is whoever moved it, and one that never undoes an e-stop. The safe state
+//! itself (every valve closed, drivers disabled) is defined once, below the executor,
+//! as `outputs::force_safe`: the executor's faults and the device's halts both use it.
 
-use crate::config::MAX_CONFIG_INLETS;
+pub use crate::outputs::force_safe;
 use crate::outputs::{Axis, Outputs, AXES};
-
-/// Drives `out` to the safe state: every valve a config can name closed, drivers off.
-/// Idempotent; the firmware's panic handler calls it too, on an `Outputs` that writes the
-/// pins' registers directly.
-pub fn force_safe(out: &mut impl Outputs) {
-    for i in 0..MAX_CONFIG_INLETS {
-        out.valve(i as u8, false);
-    }
-    out.drivers(false);
-}
 
 /// What has been commanded on the outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

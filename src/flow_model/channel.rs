@@ -5,10 +5,7 @@
 use crate::vol::Vol;
 use heapless::Deque;
 
-/// Slugs the channel model holds, from the plate to the junction. Each change of the
-/// feeding material starts one, so this bounds how many features can be in flight at once:
-/// the smallest printable feature is about (channel + hanging volume) / 64 of bead.
-pub const SLUG_CAPACITY: usize = 64;
+pub use crate::capacity::SLUG_CAPACITY;
 
 /// One run of a single material, starting at entry coordinate `start`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -4,9 +4,9 @@
 
 use super::TEXT_LEN;
 use crate::config::Config;
-use crate::executor::{Fault, RunState};
 use crate::job::{JobError, JobHeader};
 use crate::outputs::Axis;
+use crate::state::{Fault, RunState};
 use core::fmt;
 use serde::{Deserialize, Serialize};
 

@@ -233,34 +233,17 @@ fn ensure_homed<T: Transport>(c: &mut Client<T>) -> anyhow::Result<()> {
         return Ok(());
     }
     eprintln!("homing");
-    c.command(&Request::Home)?;
-    wait_idle(c, Duration::from_secs(300))?;
-    if !c.status()?.control.homed {
-        bail!("homing did not finish; check the endstops");
-    }
+    ops::home_and_wait(c).map_err(waited)?;
     Ok(())
 }
 
-/// Waits until the board is idle (or halted: an error naming why).
-fn wait_idle<T: Transport>(c: &mut Client<T>, limit: Duration) -> anyhow::Result<Status> {
-    let start = c.transport().now();
-    // The board needs a control period to take an order: look after it had one.
-    c.sleep(Duration::from_millis(5));
-    loop {
-        let s = c.status()?;
-        match s.control.mode {
-            Mode::Idle | Mode::ValveTest => return Ok(s),
-            Mode::Halted => bail!("{}", halted(&s)),
-            _ => {}
-        }
-        if c.transport().now().saturating_sub(start) > limit {
-            bail!(
-                "the board is still busy ({:?}) after {} s",
-                s.control.mode,
-                limit.as_secs()
-            );
-        }
-        c.sleep(Duration::from_millis(POLL_MS as u64 / 2));
+/// A wait that did not end at rest, in the command line's words (a halt names
+/// `dollop abort`, which clears it).
+fn waited(e: ops::WaitError) -> anyhow::Error {
+    match e {
+        ops::WaitError::Halted(s) => anyhow::anyhow!("{}", halted(&s)),
+        ops::WaitError::Link(e) => e.into(),
+        other => anyhow::anyhow!("{other}"),
     }
 }
 
@@ -487,9 +470,9 @@ pub fn jog(a: JogArgs) -> anyhow::Result<()> {
 
 /// The body of `dollop jog` on any transport.
 pub fn jog_on<T: Transport>(c: &mut Client<T>, a: &JogArgs) -> anyhow::Result<()> {
-    if a.home {
-        c.command(&Request::Home)?;
+    let s = if a.home {
         eprintln!("homing");
+        ops::home_and_wait(c).map_err(waited)?
     } else {
         let (Some(axis), Some(mm)) = (a.axis, a.mm) else {
             bail!("name an axis and a distance, e.g. `dollop jog x 10`, or use --home");
@@ -501,8 +484,8 @@ pub fn jog_on<T: Transport>(c: &mut Client<T>, a: &JogArgs) -> anyhow::Result<()
             AxisArg::Z => Axis::Z,
         };
         ops::jog(c, axis, um)?;
-    }
-    let s = wait_idle(c, Duration::from_secs(300))?;
+        ops::wait_idle(c, Duration::from_secs(300)).map_err(waited)?
+    };
     let p = s.control.position_um;
     eprintln!(
         "at x {:.3} y {:.3} z {:.3} mm",

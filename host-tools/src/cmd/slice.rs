@@ -2,6 +2,7 @@
 //! library and writes the job (.dlp), and on request G-code and a preview PNG; prints a
 //! short summary. All the work is the library's; this file maps options and prints.
 
+use crate::gcode_in::{self, emit::CountLimits, ImportOptions};
 use crate::slicer::gcode;
 use crate::slicer::gcode_dialect::{self, Kind};
 use crate::slicer::gcode_exec::{self, RunExport};
@@ -21,8 +22,9 @@ dollop slice base.stl inlay.stl --config machine.toml --out coaster.dlp --gcode 
 dollop slice coaster.3mf --config machine.toml --preview coaster.png")]
 pub struct Args {
     /// Design: one image (PNG, JPEG, BMP; colours are materials), one STL per material
-    /// in inlet order (ASCII or binary), or one 3MF whose objects carry the materials
-    /// (base material i prints from inlet i; without materials, object i in build order).
+    /// in inlet order (ASCII or binary), one 3MF whose objects carry the materials
+    /// (base material i prints from inlet i; without materials, object i in build order),
+    /// or one slicer's G-code (.gcode; tools to inlets by --tools), imported as written.
     #[arg(
         required_unless_present = "calibration_pattern",
         conflicts_with = "calibration_pattern",
@@ -119,7 +121,8 @@ pub struct Args {
     /// Lower-left corner of the design on the plate, mm [default: centred].
     #[arg(long, value_name = "X,Y")]
     pub origin: Option<String>,
-    /// Priming bead length, mm [default: 2.5 times the bead length between valves and plate, at least 5].
+    /// Priming bead length, mm [default: 2.5 times the bead length between valves and plate, at least 5]
+    /// (G-code in: 0 for none, where the file primes itself).
     #[arg(long, value_name = "MM")]
     pub prime_mm: Option<f64>,
     /// Material runs shorter than this are merged into their neighbours, mm.
@@ -140,6 +143,20 @@ pub struct Args {
     /// --out [default: calibration.dlp].
     #[arg(long)]
     pub calibration_pattern: bool,
+    /// G-code in: inlet of tool 0, tool 1, ... (also the valve numbers of `M42 P`,
+    /// `M106 P`, `SET_PIN PIN=..<n>` and RRF's `G1 .. P<bitmap>`) [default: tool i on inlet i].
+    #[arg(long, value_name = "I0,I1,..")]
+    pub tools: Option<String>,
+    /// G-code in: drop wipe towers and prime towers (refused otherwise), saying how much
+    /// paste that saves.
+    #[arg(long)]
+    pub strip_purge: bool,
+    /// G-code in: largest distance between an arc (G2/G3) and the segments it becomes, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.01)]
+    pub chord_mm: f64,
+    /// G-code in: refuse files larger than this, MiB (checked from the size, before reading).
+    #[arg(long, value_name = "MIB", default_value_t = gcode_in::DEFAULT_MAX_BYTES >> 20)]
+    pub max_gcode_in_mb: u64,
     /// Refuse images of more pixels than this (width x height; each takes 4 bytes as RGBA).
     #[arg(long, value_name = "N", default_value_t = Limits::default().max_pixels)]
     pub max_pixels: u64,
@@ -276,6 +293,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
+    if a.designs.iter().any(|d| gcode_in::is_gcode(d)) {
+        return run_gcode(a, &req, config, machine);
+    }
     let (design, path) = if a.calibration_pattern {
         let d = slicer::calibration::pattern(
             machine.inlet_count(),
@@ -289,7 +309,48 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             opts.path,
         )
     };
-    let mut sliced = slicer::slice_design(&design, &config, &machine, &path)?;
+    let sliced = slicer::slice_design(&design, &config, &machine, &path)?;
+    finish(a, &req, config, machine, sliced)
+}
+
+/// `dollop slice FILE.gcode`: imports the G-code, prints the import summary, then writes
+/// the outputs as for a design.
+fn run_gcode(
+    a: Args,
+    req: &SliceRequest,
+    config: dollop::config::Config,
+    machine: dollop::Machine<f64, 4>,
+) -> anyhow::Result<()> {
+    if a.designs.len() != 1 {
+        anyhow::bail!(
+            "give one G-code file alone ({} files given)",
+            a.designs.len()
+        );
+    }
+    let opts = ImportOptions {
+        tools: a.tools.clone(),
+        chord_mm: a.chord_mm,
+        strip_purge: a.strip_purge,
+        prime_mm: a.prime_mm,
+        max_bytes: a.max_gcode_in_mb.saturating_mul(1 << 20),
+        limits: CountLimits {
+            max_segments: a.max_segments,
+            max_commands: a.max_segments.saturating_mul(4),
+        },
+    };
+    let imported = gcode_in::import_file(&a.designs[0], &opts, &config, &machine)?;
+    print!("{}", imported.summary);
+    finish(a, req, config, machine, imported.sliced)
+}
+
+/// Everything after the job is made: markers, G-code out, preview, the summary.
+fn finish(
+    a: Args,
+    req: &SliceRequest,
+    config: dollop::config::Config,
+    machine: dollop::Machine<f64, 4>,
+    mut sliced: slicer::Sliced,
+) -> anyhow::Result<()> {
     if a.markers || a.calibration_pattern {
         sliced = slicer::with_markers(sliced, &config, &machine)?;
     }

@@ -1,11 +1,11 @@
-//! Board operations both front ends run, once: abort (and clear a halt) and a hand jog
-//! (its distance checked, sent once), each returning a typed outcome whose words both
-//! `dollop abort`/`dollop jog` and the dashboard show. Where it stops: connecting, the
-//! config a jog needs, waiting for the move and the messages around them are the
-//! front ends'.
+//! Board operations both front ends run, once: abort (and clear a halt), a hand jog (its
+//! distance checked, sent once), and homing waited out, each returning a typed outcome
+//! whose words both `dollop abort`/`dollop jog`/`dollop send` and the dashboard show.
+//! Where it stops: connecting, the config a jog needs and the messages around them are
+//! the front ends'.
 
 use super::{Client, LinkError, Transport};
-use dollop::wire::{Mode, Reply, Request};
+use dollop::wire::{Mode, Reply, Request, Status, POLL_MS};
 use dollop::Axis;
 use std::time::Duration;
 
@@ -84,6 +84,66 @@ pub fn jog<T: Transport>(c: &mut Client<T>, axis: Axis, um: i32) -> Result<(), J
         Reply::Refused(r) => Err(LinkError::Refused(r).into()),
         other => Err(JogError::Unexpected(other)),
     }
+}
+
+/// Why the board did not come to rest as asked.
+#[derive(Debug, thiserror::Error)]
+pub enum WaitError {
+    /// The board halted (a fault, an e-stop): its status says why, in the front end's
+    /// words (what clears a halt differs between them).
+    #[error("the board halted")]
+    Halted(Box<Status>),
+    /// Still busy when the time allowed ran out.
+    #[error("the board is still busy ({mode:?}) after {secs} s")]
+    Busy {
+        /// What it was doing.
+        mode: Mode,
+        /// The time allowed, s.
+        secs: u64,
+    },
+    /// Homing came to rest without the machine homed.
+    #[error("homing did not finish; check the endstops")]
+    NotHomed,
+    /// The link failed, or the board refused.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+}
+
+/// Waits until the board is idle (or in a valve test), for at most `limit`.
+pub fn wait_idle<T: Transport>(c: &mut Client<T>, limit: Duration) -> Result<Status, WaitError> {
+    let start = c.transport().now();
+    // The board needs a control period to take an order: look after it had one.
+    c.sleep(Duration::from_millis(5));
+    loop {
+        let s = c.status()?;
+        match s.control.mode {
+            Mode::Idle | Mode::ValveTest => return Ok(s),
+            Mode::Halted => return Err(WaitError::Halted(Box::new(s))),
+            _ => {}
+        }
+        if c.transport().now().saturating_sub(start) > limit {
+            return Err(WaitError::Busy {
+                mode: s.control.mode,
+                secs: limit.as_secs(),
+            });
+        }
+        c.sleep(Duration::from_millis(POLL_MS as u64 / 2));
+    }
+}
+
+/// Longest homing waited for.
+pub const HOME_LIMIT: Duration = Duration::from_secs(300);
+
+/// Homes all axes and waits (at most `HOME_LIMIT`) until the machine rests homed; returns
+/// the status it rests in.
+pub fn home_and_wait<T: Transport>(c: &mut Client<T>) -> Result<Status, WaitError> {
+    c.command(&Request::Home)?;
+    wait_idle(c, HOME_LIMIT)?;
+    let s = c.status()?;
+    if !s.control.homed {
+        return Err(WaitError::NotHomed);
+    }
+    Ok(s)
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@ use axum::response::IntoResponse;
 const INDEX: &str = include_str!("assets/index.html");
 const JS: &str = include_str!("assets/app.js");
 const CSS: &str = include_str!("assets/app.css");
+const FAVICON: &str = include_str!("assets/favicon.svg");
 
 /// The page.
 pub async fn index() -> impl IntoResponse {
@@ -24,4 +25,9 @@ pub async fn js() -> impl IntoResponse {
 /// The style.
 pub async fn css() -> impl IntoResponse {
     ([(header::CONTENT_TYPE, "text/css; charset=utf-8")], CSS)
+}
+
+/// The tab's icon (a bead of paste on a plate).
+pub async fn favicon() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "image/svg+xml")], FAVICON)
 }

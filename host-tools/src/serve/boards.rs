@@ -7,6 +7,9 @@
 //! halt. Each board has its own job queue; a finished print waits for the plate to be
 //! cleared before the next starts.
 
+use super::clock::{self, PrintClock};
+use super::controls;
+use super::history::{History, Record};
 use super::jobs::JobEntry;
 use super::lock::lock;
 use super::simlink::SimLink;
@@ -136,7 +139,8 @@ pub struct View {
     pub connected: bool,
     /// What the worker is doing: idle, uploading, homing, printing, ...
     pub activity: String,
-    /// The last thing worth telling (an order refused, a link lost), in plain words.
+    /// The last thing worth telling (an order refused, a link lost), in plain words;
+    /// it goes after `MESSAGE_S`, or sooner when what it was about is over.
     pub message: Option<String>,
     /// A halt, in plain words with what to do.
     pub fault: Option<String>,
@@ -174,10 +178,16 @@ pub struct View {
     pub progress: f64,
     /// Layer of the job (0 = the priming bead's).
     pub layer: usize,
-    /// Seconds since the print started.
+    /// Seconds since the print started; it stops when the print stops.
     pub elapsed_s: f64,
-    /// Seconds left, estimated from the pace so far.
+    /// Seconds left: the executor's virtual-time estimate of the job (made when it was
+    /// sliced) from the command the board is on, corrected by the pace so far. None when
+    /// no print is on its way (aborted, halted, nothing sent).
     pub eta_s: Option<f64>,
+    /// When the print should end, ms since 1970 (the page shows the clock time).
+    pub finish_unix_ms: Option<f64>,
+    /// Why each control cannot act now (absent: it can), by action name.
+    pub refused: std::collections::BTreeMap<String, String>,
     /// Upload to the board: bytes acknowledged and total.
     pub upload: Option<(u64, u64)>,
     /// Jobs waiting.
@@ -269,7 +279,8 @@ impl Board {
 
 /// Starts the workers: the simulated boards first, then `--board` ports (or the USB board
 /// found by VID/PID).
-pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
+pub fn start_all(a: &Args, history: &Arc<History>) -> Vec<Arc<Board>> {
+    let h = || Some(history.clone());
     let mut out = Vec::new();
     for i in 0..a.sim_boards.max(1) {
         let name = if a.sim_boards > 1 {
@@ -277,7 +288,15 @@ pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
         } else {
             "simulated board".into()
         };
-        out.push(spawn(i, name, "simulated".into(), None, a.sim_speed));
+        out.push(spawn_with(
+            i,
+            name,
+            "simulated".into(),
+            None,
+            a.sim_speed,
+            Duration::ZERO,
+            h(),
+        ));
     }
     let mut ports = a.boards.clone();
     if ports.is_empty() && !a.no_usb {
@@ -287,13 +306,24 @@ pub fn start_all(a: &Args) -> Vec<Arc<Board>> {
     }
     for p in ports {
         let id = out.len();
-        out.push(spawn(id, format!("board {id}"), p.clone(), Some(p), 1.0));
+        let name = format!("board {id}");
+        out.push(spawn_with(
+            id,
+            name,
+            p.clone(),
+            Some(p),
+            1.0,
+            Duration::ZERO,
+            h(),
+        ));
     }
     out
 }
 
+/// `spawn_with`, frames undelayed and nothing recorded (unit tests).
+#[cfg(test)]
 fn spawn(id: usize, name: String, port: String, path: Option<String>, speed: f64) -> Arc<Board> {
-    spawn_with(id, name, port, path, speed, Duration::ZERO)
+    spawn_with(id, name, port, path, speed, Duration::ZERO, None)
 }
 
 /// `spawn`, with the simulated board's link delaying each frame by `frame_delay`.
@@ -304,6 +334,7 @@ fn spawn_with(
     path: Option<String>,
     speed: f64,
     frame_delay: Duration,
+    history: Option<Arc<History>>,
 ) -> Arc<Board> {
     let (tx, rx) = mpsc::channel();
     let view = View {
@@ -328,6 +359,7 @@ fn spawn_with(
         .spawn(move || {
             let mut w = Worker::new(path, speed, view, vtx, cancel);
             w.frame_delay = frame_delay;
+            w.history = history;
             w.run(rx)
         });
     if let Err(e) = spawned {
@@ -338,10 +370,13 @@ fn spawn_with(
 
 type Reply = tokio::sync::oneshot::Sender<Result<String, String>>;
 
+/// How long a message stays on the card, s.
+pub const MESSAGE_S: u64 = 20;
+
 /// The job on the board, and how its print goes.
 struct Current {
     entry: Arc<JobEntry>,
-    started: Option<Instant>,
+    clock: PrintClock,
     /// Where each layer starts, by command.
     layer_starts: Vec<u32>,
     /// Aborted from here.
@@ -366,6 +401,13 @@ struct Worker {
     frame_delay: Duration,
     /// When the last pause (or park) was ordered, for its latency.
     pause_asked: Option<Instant>,
+    /// When `view.message` was said (it expires).
+    message_at: Option<Instant>,
+    /// A job was sent while the board was busy (homing, jogging, a valve test): start
+    /// the queue's first when it is free.
+    start_when_free: bool,
+    /// Where an ended print is recorded (none: not recorded; unit tests).
+    history: Option<Arc<History>>,
 }
 
 fn mode_words(s: &Status) -> Option<String> {
@@ -405,10 +447,55 @@ impl Worker {
             plant_config: None,
             frame_delay: Duration::ZERO,
             pause_asked: None,
+            message_at: None,
+            start_when_free: false,
+            history: None,
         }
     }
 
+    /// Records the print that just ended.
+    fn record(&mut self, outcome: &str) {
+        let (Some(h), Some(cur)) = (self.history.clone(), self.current.as_ref()) else {
+            return;
+        };
+        let now_unix = clock::unix_ms_in(0.0).unwrap_or(0.0) / 1e3;
+        let now = Instant::now();
+        let r = Record {
+            board: self.view.id,
+            board_name: self.view.name.clone(),
+            job: cur.entry.figures.name.clone(),
+            config_hash: format!("{:08x}", dollop::job::config_hash(&cur.entry.config)),
+            started_unix_s: now_unix - cur.clock.elapsed_s(now),
+            ended_unix_s: now_unix,
+            outcome: outcome.into(),
+            printing_s: cur.clock.printing_s(now),
+            command: self.view.command,
+            commands: self.view.commands,
+        };
+        if let Err(e) = h.add(r) {
+            self.say(e);
+        }
+    }
+
+    /// Shows a message on the card (until it expires or another replaces it).
+    fn say(&mut self, m: impl Into<String>) {
+        self.view.message = Some(m.into());
+        self.message_at = Some(Instant::now());
+    }
+
+    /// Clears the message (what it was about is over).
+    fn hush(&mut self) {
+        self.view.message = None;
+        self.message_at = None;
+    }
+
     fn publish(&mut self) {
+        if self
+            .message_at
+            .is_some_and(|t| t.elapsed() >= Duration::from_secs(MESSAGE_S))
+        {
+            self.hush();
+        }
         self.view.seq += 1;
         self.view.queue = self
             .queue
@@ -418,6 +505,7 @@ impl Worker {
                 name: e.figures.name.clone(),
             })
             .collect();
+        self.view.refused = controls::refusals(&self.view, self.queue.len());
         let _ = self.vtx.send(self.view.clone());
     }
 
@@ -449,12 +537,12 @@ impl Worker {
                 self.client = Some(c);
                 self.view.connected = true;
                 self.view.activity = "idle".into();
-                self.view.message = None;
+                self.hush();
             }
             Err(e) => {
                 self.view.connected = false;
                 self.view.activity = "not connected".into();
-                self.view.message = Some(format!(
+                self.say(format!(
                     "{e}; retrying every 3 s (check the cable and power)"
                 ));
                 self.next_connect = Instant::now() + Duration::from_secs(3);
@@ -467,7 +555,7 @@ impl Worker {
         self.view.connected = false;
         self.view.upload = None;
         self.view.activity = "not connected".into();
-        self.view.message = Some(format!(
+        self.say(format!(
             "Lost the board: {e}. A print on it pauses by its link-loss policy; plug it back in and press Resume. Queued jobs are kept."
         ));
         self.next_connect = Instant::now() + Duration::from_secs(1);
@@ -479,8 +567,10 @@ impl Worker {
             match rx.recv_timeout(Duration::from_millis(100)) {
                 Ok((order, reply)) => {
                     let r = self.handle(order);
-                    if let Err(m) = &r {
-                        self.view.message = Some(m.clone());
+                    match &r {
+                        Err(m) => self.say(m.clone()),
+                        // The order went through: an older refusal is no longer news.
+                        Ok(_) => self.hush(),
                     }
                     let _ = reply.send(r);
                 }
@@ -498,17 +588,40 @@ impl Worker {
             return;
         };
         c.transport_mut().link.catch_up();
+        let mut failed = None;
         if let Some((at, inlet)) = self.valve_close {
             if Instant::now() >= at {
                 self.valve_close = None;
                 if let Err(e) = c.command(&Request::Valve { inlet, open: false }) {
-                    self.view.message = Some(format!("closing valve {inlet} failed: {e}"));
+                    failed = Some(format!("closing valve {inlet} failed: {e}"));
                 }
             }
         }
-        match c.status() {
+        let status = c.status();
+        if let Some(m) = failed {
+            self.say(m);
+        }
+        match status {
             Ok(s) => self.show(&s),
-            Err(e) => self.lost(&e),
+            Err(e) => return self.lost(&e),
+        }
+        self.start_if_free();
+    }
+
+    /// Starts the queue's first job once the board that was busy when it was sent is
+    /// free (idle, or unconfigured: the job loads its config).
+    fn start_if_free(&mut self) {
+        let free = matches!(self.view.mode, Some(Mode::Idle | Mode::Unconfigured));
+        if !(self.start_when_free && free && self.client.is_some()) {
+            return;
+        }
+        self.start_when_free = false;
+        if self.queue.is_empty() {
+            return;
+        }
+        match self.start_next() {
+            Ok(m) => self.say(m),
+            Err(m) => self.say(m),
         }
     }
 
@@ -557,8 +670,33 @@ impl Worker {
             }
         }
         let printing = k.mode == Mode::Job;
+        let done = k.run == RunState::Done;
+        // Still on its way: the job runs (or is paused) on the board.
+        let running = printing
+            && !matches!(
+                k.run,
+                RunState::Done | RunState::Aborted | RunState::Faulted
+            );
+        if !running && !matches!(k.mode, Mode::Homing | Mode::Jogging) {
+            // Nothing moves the head and no print meters paste: a stopped executor's
+            // last speed and flow are not the board now.
+            v.speed = 0.0;
+            if k.valves == 0 {
+                v.flow_model = 0.0;
+                if v.flow_source == "model" {
+                    v.flow = 0.0;
+                }
+            }
+        }
+        let mut ended = None;
         if let Some(cur) = self.current.as_mut() {
-            v.progress = if k.run == RunState::Done {
+            let now = Instant::now();
+            if done {
+                // A finished job has done every command (the board's count stops one
+                // short: it counts the command under way).
+                v.command = v.commands;
+            }
+            v.progress = if done {
                 1.0
             } else {
                 (k.command as f64 / v.commands.max(1) as f64).min(1.0)
@@ -567,14 +705,35 @@ impl Worker {
                 .layer_starts
                 .partition_point(|&c| c <= k.command)
                 .saturating_sub(1);
-            if let Some(t) = cur.started {
-                v.elapsed_s = t.elapsed().as_secs_f64();
-                v.eta_s = (v.progress > 0.01 && v.progress < 1.0)
-                    .then(|| v.elapsed_s * (1.0 - v.progress) / v.progress);
+            if running {
+                cur.clock.paused(k.run == RunState::Paused, now);
+            } else if !cur.clock.ended() {
+                cur.clock.end(now);
+                ended = Some(if done {
+                    "finished"
+                } else if k.mode == Mode::Halted {
+                    "halted"
+                } else {
+                    "aborted"
+                });
             }
-            if k.run == RunState::Done {
-                v.eta_s = Some(0.0);
-            }
+            v.elapsed_s = cur.clock.elapsed_s(now);
+            let f = &cur.entry.figures;
+            v.eta_s = if done {
+                Some(0.0)
+            } else if running {
+                clock::eta_s(
+                    &f.command_t_s,
+                    f.est_time_s,
+                    k.command,
+                    v.commands,
+                    cur.clock.printing_s(now),
+                    self.speed,
+                )
+            } else {
+                None
+            };
+            v.finish_unix_ms = v.eta_s.and_then(clock::unix_ms_in);
         }
         v.activity = match (k.mode, k.run) {
             // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
@@ -593,6 +752,9 @@ impl Worker {
         if !printing && self.current.as_ref().is_some_and(|c| c.aborted) && k.mode == Mode::Idle {
             v.activity = "aborted".into();
         }
+        if let Some(outcome) = ended {
+            self.record(outcome);
+        }
     }
 
     fn client(&mut self) -> Result<&mut Client<Cancellable>, String> {
@@ -601,25 +763,56 @@ impl Worker {
             .ok_or_else(|| "the board is not connected; check its cable and power".to_string())
     }
 
+    /// Refuses an order the board cannot act on now (see `controls`).
+    fn check(&self, action: &str) -> Result<(), String> {
+        match controls::refusal(&self.view, self.queue.len(), action) {
+            Some(why) => Err(format!("{action}: {why}")),
+            None => Ok(()),
+        }
+    }
+
     fn handle(&mut self, o: Order) -> Result<String, String> {
+        match &o {
+            Order::StartNext => self.check("start-next")?,
+            Order::Pause => self.check("pause")?,
+            Order::Park => self.check("park")?,
+            Order::Resume => self.check("resume")?,
+            Order::Home(_) => self.check("home")?,
+            Order::Valve(..) => self.check("valve")?,
+            // A jog's distance is checked first (its error says more than "not homed").
+            Order::Jog(..) | Order::Send(_) | Order::Unqueue(_) | Order::Abort => {}
+        }
         match o {
             Order::Send(e) => {
                 let name = e.figures.name.clone();
                 self.queue.push(e);
                 let busy =
                     self.view.mode == Some(Mode::Job) || self.view.activity.starts_with("finished");
-                if busy || self.client.is_none() {
+                if busy {
                     return Ok(format!("{name} queued ({} waiting)", self.queue.len()));
+                }
+                if self.client.is_none() {
+                    self.start_when_free = true;
+                    return Ok(format!(
+                        "{name} queued: the board is not connected; it starts when the board is back and free"
+                    ));
+                }
+                if let Some(what) = controls::busy_words(self.view.mode) {
+                    self.start_when_free = true;
+                    return Ok(format!(
+                        "{name} queued: {what}; it starts when the board is free"
+                    ));
                 }
                 self.start_next()
             }
             Order::StartNext => self.start_next(),
             Order::Unqueue(id) => {
-                let n = self.queue.len();
-                self.queue.retain(|e| e.id != id);
-                if self.queue.len() == n {
+                // One entry: the same job queued twice is two prints, and a remove click
+                // takes back one of them (the copies are alike: the last goes).
+                let Some(at) = self.queue.iter().rposition(|e| e.id == id) else {
                     return Err("that job is not in this board's queue".into());
-                }
+                };
+                self.queue.remove(at);
                 Ok("removed from the queue".into())
             }
             Order::Park => {
@@ -646,6 +839,7 @@ impl Worker {
                 Ok("resumed".into())
             }
             Order::Abort => {
+                self.start_when_free = false;
                 self.cancel.store(false, Ordering::SeqCst);
                 let c = self.client()?;
                 let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
@@ -668,6 +862,7 @@ impl Worker {
             }
             Order::Jog(axis, mm, fallback) => {
                 let um = ops::jog_um(mm).map_err(|e| e.to_string())?;
+                self.check("jog")?;
                 self.ensure_config(fallback)?;
                 ops::jog(self.client()?, axis, um).map_err(|e| e.to_string())?;
                 Ok(format!("jogging {axis:?} by {mm} mm"))
@@ -781,7 +976,11 @@ impl Worker {
             name: entry.figures.name.clone(),
         });
         self.view.progress = 0.0;
-        self.view.eta_s = None;
+        self.view.command = 0;
+        self.view.elapsed_s = 0.0;
+        // Before it starts (upload, homing): the whole estimate.
+        self.view.eta_s = Some(entry.figures.est_time_s / self.speed);
+        self.view.finish_unix_ms = self.view.eta_s.and_then(clock::unix_ms_in);
         let total = job.body.len() as u64;
         let vtx = self.vtx.clone();
         let mut shown = self.view.clone();
@@ -865,7 +1064,7 @@ impl Worker {
         }
         self.current = Some(Current {
             entry: entry.clone(),
-            started: Some(Instant::now()),
+            clock: PrintClock::start(Instant::now()),
             layer_starts,
             aborted: false,
         });
@@ -949,7 +1148,13 @@ mod tests {
     #[test]
     fn a_job_prints_to_the_end_and_orders_are_checked() {
         let mut w = worker(200.0);
+        w.tick();
         let job = chessboard();
+        // Nothing to pause or resume on an idle board: refused, not a success.
+        for o in [Order::Pause, Order::Resume, Order::Park] {
+            let e = w.handle(o).expect_err("refused on an idle board");
+            assert!(e.contains("no print is running"), "{e}");
+        }
         assert_eq!(
             w.handle(Order::Jog(Axis::X, f64::NAN, None))
                 .err()
@@ -979,6 +1184,81 @@ mod tests {
             w.view.activity
         );
         assert_eq!(w.view.eta_s, Some(0.0));
+        // Every command done, and the clock stopped with the print.
+        assert_eq!(w.view.command, w.view.commands);
+        assert!(w.view.commands > 10, "{}", w.view.commands);
+        let elapsed = w.view.elapsed_s;
+        std::thread::sleep(Duration::from_millis(150));
+        w.tick();
+        assert_eq!(w.view.elapsed_s, elapsed);
+        assert_eq!((w.view.speed, w.view.eta_s), (0.0, Some(0.0)));
+    }
+
+    /// After an Abort mid-print nothing on the card goes on: the clock stops, the ETA
+    /// goes, the speed and the model's flow read zero with the valves shut.
+    #[test]
+    fn abort_stops_the_clock_the_eta_the_speed_and_the_flow() {
+        let mut w = worker(20.0);
+        w.handle(Order::Send(chessboard())).expect("starts");
+        tick_until(&mut w, "printing", |v| {
+            v.progress > 0.3 && v.run == Some(RunState::Printing) && v.speed > 0.0
+        });
+        let eta = w.view.eta_s.expect("an ETA while printing");
+        let finish = w.view.finish_unix_ms.expect("a finishing time");
+        assert!(eta > 0.0 && finish > 0.0, "{eta} {finish}");
+        w.handle(Order::Abort).expect("aborts");
+        tick_until(&mut w, "aborted", |v| v.mode == Some(Mode::Idle));
+        w.tick();
+        let elapsed = w.view.elapsed_s;
+        std::thread::sleep(Duration::from_millis(200));
+        w.tick();
+        let v = &w.view;
+        assert_eq!(v.activity, "aborted");
+        assert_eq!(v.elapsed_s, elapsed);
+        assert_eq!((v.eta_s, v.finish_unix_ms), (None, None));
+        assert_eq!((v.valves, v.speed, v.flow_model), (0, 0.0, 0.0));
+        assert!(v.refused.contains_key("pause") && !v.refused.contains_key("home"));
+    }
+
+    /// A job sent while the board homes is queued, and starts by itself once homing ends.
+    #[test]
+    fn a_job_sent_while_homing_starts_when_the_board_is_free() {
+        let mut w = worker(20.0);
+        let cfg = design::check(design::BUNDLED[0].1).expect("config").config;
+        w.handle(Order::Home(Some(Box::new(cfg)))).expect("homes");
+        w.tick();
+        assert_eq!(w.view.mode, Some(Mode::Homing));
+        let m = w.handle(Order::Send(chessboard())).expect("queued");
+        assert!(m.contains("starts when the board is free"), "{m}");
+        assert_eq!(w.queue.len(), 1);
+        tick_until(&mut w, "the queued job", |v| v.mode == Some(Mode::Job));
+        assert!(w.queue.is_empty());
+        assert_eq!(w.view.job.as_ref().map(|j| j.job), Some(7));
+    }
+
+    /// The same job queued twice: a remove takes back one copy, not both (the browser
+    /// test's held click on the second copy's remove emptied the queue).
+    #[test]
+    fn unqueue_takes_back_one_copy() {
+        let mut w = worker(20.0);
+        w.queue.push(chessboard());
+        w.queue.push(chessboard());
+        w.handle(Order::Unqueue(7)).expect("removed");
+        assert_eq!(w.queue.len(), 1);
+        w.handle(Order::Unqueue(7)).expect("removed");
+        assert!(w.handle(Order::Unqueue(7)).is_err());
+    }
+
+    /// A refusal on the card goes after `MESSAGE_S` (it used to stay for good).
+    #[test]
+    fn a_message_expires() {
+        let mut w = worker(20.0);
+        w.say("old news");
+        w.publish();
+        assert_eq!(w.view.message.as_deref(), Some("old news"));
+        w.message_at = Instant::now().checked_sub(Duration::from_secs(MESSAGE_S));
+        w.publish();
+        assert_eq!(w.view.message, None);
     }
 
     /// Park from the card: the board pauses, the view shows the latency (valves shut no
@@ -1224,6 +1504,7 @@ mod tests {
             None,
             1.0,
             Duration::from_millis(40),
+            None,
         );
         rt.block_on(async {
             let mut view = board.view.clone();

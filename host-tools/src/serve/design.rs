@@ -455,7 +455,8 @@ pub fn slice_error(e: SliceError) -> ApiError {
             Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
             None => format!("{}: {}", field_name(o.option), o.problem),
         }),
-        e => ApiError::bad(e.to_string()),
+        // The rest (travel limits among them) as `From` words them.
+        e => ApiError::from(e),
     }
 }
 
@@ -524,11 +525,7 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     // The slicer names the files in its messages: the user's names, not our folder's.
     let ours = format!("{}/", dir.path().display());
-    let strip = |e: slicer::SliceError| {
-        let mut e = slice_error(e);
-        e.error = e.error.replace(&ours, "");
-        e
-    };
+    let strip = |e: slicer::SliceError| ApiError::from(e).map_message(|m| m.replace(&ours, ""));
     let mut sliced = slicer::slice_files(&paths, config, &opts).map_err(strip)?;
     if req.markers {
         let machine = slicer::validate(Path::new("config"), config).map_err(strip)?;
@@ -696,6 +693,10 @@ pub struct Figures {
     pub length_time_s: f64,
     /// Commands in the job.
     pub commands: usize,
+    /// The executor's virtual time at which each command began, s (empty when that run
+    /// could not be made): the print's ETA reads it against the board's command count.
+    #[serde(skip)]
+    pub command_t_s: Vec<f64>,
 }
 
 /// The figures of a sliced job on `config`.
@@ -704,13 +705,18 @@ pub fn figures(s: &Sliced, config: &Config) -> Figures {
     let print = st.print_mm + st.prime_mm;
     let length_time_s = print / (config.motion.print_speed_mm_s as f64).max(1e-3)
         + st.travel_mm / (config.motion.travel_speed_mm_s as f64).max(1e-3);
-    let (est_time_s, est_time_from) = match executor_time(s, config) {
-        Ok(t) => (
+    let (est_time_s, est_time_from, command_t_s) = match executor_timeline(s, config) {
+        Ok((t, starts)) => (
             t,
             "a run of the executor in virtual time (ramps and valve waits included; no plant)"
                 .to_string(),
+            starts,
         ),
-        Err(e) => (length_time_s, format!("lengths over speeds ({e})")),
+        Err(e) => (
+            length_time_s,
+            format!("lengths over speeds ({e})"),
+            Vec::new(),
+        ),
     };
     Figures {
         name: s.name.clone(),
@@ -726,12 +732,19 @@ pub fn figures(s: &Sliced, config: &Config) -> Figures {
         est_time_from,
         length_time_s,
         commands: s.commands.len(),
+        command_t_s,
     }
 }
 
 /// Virtual time the executor (in the board's f32) takes over the job: no plant, no
 /// outputs kept, so it costs the executor's ticks only.
 pub fn executor_time(s: &Sliced, config: &Config) -> Result<f64, String> {
+    executor_timeline(s, config).map(|(t, _)| t)
+}
+
+/// [`executor_time`], with the virtual time at which each command began (index by the
+/// executor's command count; commands it never reached read the end time).
+pub fn executor_timeline(s: &Sliced, config: &Config) -> Result<(f64, Vec<f64>), String> {
     let job = dollop_sim::Job {
         start_um: s.header.start_um,
         initial_material: s.header.initial_material,
@@ -743,10 +756,21 @@ pub fn executor_time(s: &Sliced, config: &Config) -> Result<f64, String> {
         max_time_s: 86_400.0,
         ..Default::default()
     };
-    let r = dollop_sim::run::<f32>(config, &job, &opts, |_| {}).map_err(|e| e.to_string())?;
+    let n = s.commands.len();
+    let mut starts: Vec<f64> = Vec::with_capacity(n + 1);
+    let r = dollop_sim::run::<f32>(config, &job, &opts, |c| {
+        let at = (c.report.command_index as usize).min(n);
+        while starts.len() <= at {
+            starts.push(c.t_s);
+        }
+    })
+    .map_err(|e| e.to_string())?;
     match r.fault {
         Some(f) => Err(format!("the executor stopped the job: {f}")),
-        None => Ok(r.time_s),
+        None => {
+            starts.resize(n + 1, r.time_s);
+            Ok((r.time_s, starts))
+        }
     }
 }
 
@@ -768,7 +792,7 @@ mod tests {
     #[test]
     fn bundled_configs_check_with_derived_figures() {
         for (name, text) in BUNDLED {
-            let c = check(text).unwrap_or_else(|e| panic!("{name}: {}", e.error));
+            let c = check(text).unwrap_or_else(|e| panic!("{name}: {}", e.message()));
             assert!(c.fields.len() > 10, "{name}: {} fields", c.fields.len());
         }
         let c = check(seed()).expect("seed config");
@@ -784,13 +808,12 @@ mod tests {
     fn a_validation_error_names_its_field() {
         let text = apply(seed(), &edit("channel.line_pitch_mm", "-1")).expect("applies");
         let e = check(&text).err().expect("refused");
-        assert_eq!(
-            e.field.as_deref(),
-            Some("channel.line_pitch_mm"),
+        assert_eq!(e.field(), Some("channel.line_pitch_mm"), "{}", e.message());
+        assert!(
+            e.message().contains("must not be negative"),
             "{}",
-            e.error
+            e.message()
         );
-        assert!(e.error.contains("must not be negative"), "{}", e.error);
         // One element of a list: the field is the list.
         let text = apply(
             seed(),
@@ -798,12 +821,7 @@ mod tests {
         )
         .expect("applies");
         let e = check(&text).err().expect("refused");
-        assert_eq!(
-            e.field.as_deref(),
-            Some("motion.max_accel_mm_s2"),
-            "{}",
-            e.error
-        );
+        assert_eq!(e.field(), Some("motion.max_accel_mm_s2"), "{}", e.message());
     }
 
     #[test]
@@ -811,30 +829,30 @@ mod tests {
         let text = apply(seed(), &edit("channel.layer_height_mm", "\"thick\"")).expect("applies");
         let e = check(&text).err().expect("refused");
         assert_eq!(
-            e.field.as_deref(),
+            e.field(),
             Some("channel.layer_height_mm"),
             "{}",
-            e.error
+            e.message()
         );
         let e = apply(seed(), &edit("channel.layer_height_mm", "0.6 mm")).expect_err("refused");
         assert_eq!(
-            e.field.as_deref(),
+            e.field(),
             Some("channel.layer_height_mm"),
             "{}",
-            e.error
+            e.message()
         );
         let e = apply(seed(), &edit("inlet[1].material", "\"x")).expect_err("refused");
-        assert_eq!(e.field.as_deref(), Some("inlet[1].material"), "{}", e.error);
+        assert_eq!(e.field(), Some("inlet[1].material"), "{}", e.message());
         let e = apply(seed(), &edit("inlet[7].material", "\"x\"")).expect_err("refused");
-        assert!(e.error.contains("no such field"), "{}", e.error);
+        assert!(e.message().contains("no such field"), "{}", e.message());
         let text =
             apply(seed(), &edit("inlet[1].valve_open_delay_ms", "\"soon\"")).expect("applies");
         let e = check(&text).err().expect("refused");
         assert_eq!(
-            e.field.as_deref(),
+            e.field(),
             Some("inlet[1].valve_open_delay_ms"),
             "{}",
-            e.error
+            e.message()
         );
     }
 
@@ -859,7 +877,7 @@ mod tests {
         assert!(pos("inlet[0].material") < pos("inlet[0].rheology"));
         // A value that is not TOML names its field.
         let e = apply(before, &edit("motion.print_speed_mm_s", "fast")).expect_err("refused");
-        assert_eq!(e.field.as_deref(), Some("motion.print_speed_mm_s"));
+        assert_eq!(e.field(), Some("motion.print_speed_mm_s"));
     }
 
     #[test]
@@ -912,7 +930,9 @@ mod tests {
             f.est_time_s, f.length_time_s
         );
         assert!(f.est_time_s > f.length_time_s, "{f:?}");
-        let e = slice(&[], &c.config, &form).err().map(|e| e.error);
+        let e = slice(&[], &c.config, &form)
+            .err()
+            .map(|e| e.message().to_string());
         assert!(e.is_some_and(|e| e.contains("choose a design")));
     }
 
@@ -977,8 +997,8 @@ mod tests {
         ];
         for (form, want) in cases {
             let e = slice(&uploads, &c.config, &form).expect_err("refused");
-            assert!(e.error.starts_with(want), "{}", e.error);
-            assert!(!e.error.contains("--"), "{}", e.error);
+            assert!(e.message().starts_with(want), "{}", e.message());
+            assert!(!e.message().contains("--"), "{}", e.message());
         }
     }
 

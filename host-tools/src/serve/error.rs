@@ -1,78 +1,132 @@
-//! The one error type the HTTP handlers return: a status, a plain-words message for the
-//! page, and, for config problems, the field it belongs to (the page shows it there).
-//! Nothing from outside reaches a panic: every failure becomes one of these.
+//! The one error type the HTTP handlers return: what kind of refusal or failure (which
+//! gives the HTTP status), a plain-words message for the page, and, where one field of the
+//! page is at fault, that field. Each library's error comes in by a `From` that words it
+//! in the page's terms (its field labels, not the command line's flags). Nothing from
+//! outside reaches a panic: every failure becomes one of these.
 
+use crate::calibrate::error::CalError;
+use crate::slicer::SliceError;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use serde::Serialize;
 
 /// A refusal or failure, as the page shows it.
-#[derive(Debug, Clone, Serialize)]
-pub struct ApiError {
-    /// HTTP status.
-    #[serde(skip)]
-    pub status: StatusCode,
-    /// What happened and what to do, one line.
-    pub error: String,
-    /// The config field it is about (`channel.line_pitch_mm`, `inlet[0].material`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub field: Option<String>,
+#[derive(Debug, Clone, PartialEq)]
+pub enum ApiError {
+    /// The request was wrong (a bad file, a bad option): 400, with the page's field (a
+    /// config path such as `channel.line_pitch_mm`, or a form field's id) when one is.
+    Bad {
+        /// What happened and what to do, one line.
+        error: String,
+        /// The field it is about.
+        field: Option<String>,
+    },
+    /// Nothing by that name (a job, a simulation, a board): 404.
+    Missing(String),
+    /// Someone else holds it, or the board cannot act now: 409.
+    Conflict(String),
+    /// The upload is over the size limit: 413.
+    TooLarge(String),
+    /// No valid key or password (`--auth`): 401.
+    Unauthorized(String),
+    /// Our side failed (a worker thread gone, a temporary file not written): 500.
+    Internal(String),
 }
 
 impl ApiError {
-    /// The request was wrong (bad file, bad option): 400.
+    /// The request was wrong (bad file, bad option).
     pub fn bad(msg: impl Into<String>) -> Self {
-        ApiError {
-            status: StatusCode::BAD_REQUEST,
+        ApiError::Bad {
             error: msg.into(),
             field: None,
         }
     }
-    /// Nothing by that name (a job, a simulation, a board): 404.
+    /// Nothing by that name.
     pub fn missing(msg: impl Into<String>) -> Self {
-        ApiError {
-            status: StatusCode::NOT_FOUND,
-            error: msg.into(),
-            field: None,
-        }
+        ApiError::Missing(msg.into())
     }
-    /// Someone else holds it, or it is busy: 409.
+    /// Someone else holds it, or it is busy.
     pub fn conflict(msg: impl Into<String>) -> Self {
-        ApiError {
-            status: StatusCode::CONFLICT,
-            error: msg.into(),
-            field: None,
-        }
+        ApiError::Conflict(msg.into())
     }
-    /// The upload is over the size limit: 413.
+    /// The upload is over the size limit.
     pub fn too_large() -> Self {
-        ApiError {
-            status: StatusCode::PAYLOAD_TOO_LARGE,
-            error: format!(
-                "the upload is larger than the {} MiB this dashboard accepts; use the command line (dollop slice) for bigger files",
-                super::MAX_UPLOAD >> 20
-            ),
-            field: None,
-        }
+        ApiError::TooLarge(format!(
+            "the upload is larger than the {} MiB this dashboard accepts; use the command line (dollop slice) for bigger files",
+            super::MAX_UPLOAD >> 20
+        ))
     }
-    /// Our side failed (a worker thread gone, a temporary file not written): 500.
+    /// Our side failed.
     pub fn internal(msg: impl Into<String>) -> Self {
-        ApiError {
-            status: StatusCode::INTERNAL_SERVER_ERROR,
-            error: msg.into(),
-            field: None,
+        ApiError::Internal(msg.into())
+    }
+    /// Attaches the page's field (a refusal that is not `Bad` has none, and stays as it is).
+    pub fn at(self, f: impl Into<String>) -> Self {
+        match self {
+            ApiError::Bad { error, .. } => ApiError::Bad {
+                error,
+                field: Some(f.into()),
+            },
+            other => other,
         }
     }
-    /// Attaches the config field.
-    pub fn at(mut self, field: impl Into<String>) -> Self {
-        self.field = Some(field.into());
-        self
+    /// The HTTP status.
+    pub fn status(&self) -> StatusCode {
+        match self {
+            ApiError::Bad { .. } => StatusCode::BAD_REQUEST,
+            ApiError::Missing(_) => StatusCode::NOT_FOUND,
+            ApiError::Conflict(_) => StatusCode::CONFLICT,
+            ApiError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+    /// The message.
+    pub fn message(&self) -> &str {
+        match self {
+            ApiError::Bad { error, .. } => error,
+            ApiError::Missing(m)
+            | ApiError::Conflict(m)
+            | ApiError::TooLarge(m)
+            | ApiError::Unauthorized(m)
+            | ApiError::Internal(m) => m,
+        }
+    }
+    /// The field it is about, if any.
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            ApiError::Bad { field, .. } => field.as_deref(),
+            _ => None,
+        }
+    }
+    /// The same refusal with its message rewritten (a temporary folder's name taken out).
+    pub fn map_message(self, f: impl FnOnce(&str) -> String) -> Self {
+        match self {
+            ApiError::Bad { error, field } => ApiError::Bad {
+                error: f(&error),
+                field,
+            },
+            ApiError::Missing(m) => ApiError::Missing(f(&m)),
+            ApiError::Conflict(m) => ApiError::Conflict(f(&m)),
+            ApiError::TooLarge(m) => ApiError::TooLarge(f(&m)),
+            ApiError::Unauthorized(m) => ApiError::Unauthorized(f(&m)),
+            ApiError::Internal(m) => ApiError::Internal(f(&m)),
+        }
+    }
+}
+
+impl std::fmt::Display for ApiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.message())
     }
 }
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.status, axum::Json(self)).into_response()
+        let body = match self.field() {
+            Some(field) => serde_json::json!({ "error": self.message(), "field": field }),
+            None => serde_json::json!({ "error": self.message() }),
+        };
+        (self.status(), axum::Json(body)).into_response()
     }
 }
 
@@ -89,5 +143,101 @@ impl From<axum::extract::multipart::MultipartError> for ApiError {
     }
 }
 
+/// The slicing options' fields as the Design page labels them (the library's messages
+/// name the command line's flags for these).
+const SLICE_FIELDS: [(&str, &str, &str); 2] = [
+    (
+        "scale it (--width-mm/--height-mm) or move it (--origin)",
+        "scale it (Width, mm / Height, mm) or move it (Origin X,Y mm)",
+        "opt-width_mm",
+    ),
+    ("change --origin", "change Origin X,Y mm", "opt-origin"),
+];
+
+impl From<SliceError> for ApiError {
+    fn from(e: SliceError) -> Self {
+        match e {
+            SliceError::BadOption(_) => super::design::slice_error(e),
+            e @ (SliceError::TooLarge { .. } | SliceError::OutsideTravel { .. }) => {
+                let mut m = e.to_string();
+                let mut field = None;
+                for (flag, label, id) in SLICE_FIELDS {
+                    if m.contains(flag) {
+                        m = m.replace(flag, label);
+                        field = Some(id);
+                    }
+                }
+                let e = ApiError::bad(m);
+                match field {
+                    Some(f) => e.at(f),
+                    None => e,
+                }
+            }
+            e => ApiError::bad(e.to_string()),
+        }
+    }
+}
+
+impl From<CalError> for ApiError {
+    fn from(e: CalError) -> Self {
+        // The flow fit's mass flows need the density: the page's field, not the flag.
+        let m = e
+            .to_string()
+            .replace("say --density G_PER_ML", "give the density (g/ml)")
+            .replace("--density ", "density ");
+        match e {
+            CalError::RoiTooSmall { .. } => ApiError::bad(m).at("cam-roi"),
+            _ if m.contains("density") => ApiError::bad(m).at("cal-density"),
+            _ => ApiError::bad(m),
+        }
+    }
+}
+
 /// Results of handlers.
 pub type ApiResult<T> = Result<T, ApiError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_kind_answers_its_status_and_the_field_only_where_one_is() {
+        let e = ApiError::bad("x").at("motion.print_speed_mm_s");
+        assert_eq!(e.status(), StatusCode::BAD_REQUEST);
+        assert_eq!(e.field(), Some("motion.print_speed_mm_s"));
+        let e = ApiError::conflict("busy").at("ignored");
+        assert_eq!((e.status(), e.field()), (StatusCode::CONFLICT, None));
+        assert_eq!(
+            ApiError::too_large().status(),
+            StatusCode::PAYLOAD_TOO_LARGE
+        );
+        assert_eq!(
+            ApiError::Unauthorized("key".into()).status(),
+            StatusCode::UNAUTHORIZED
+        );
+    }
+
+    #[test]
+    fn a_design_too_large_names_the_pages_fields_not_flags() {
+        let e: ApiError = SliceError::TooLarge {
+            what: "logo.png".into(),
+            size: [300.0, 10.0, 1.0],
+            travel: [200.0, 200.0, 50.0],
+        }
+        .into();
+        assert!(!e.message().contains("--"), "{e}");
+        assert!(e.message().contains("Width, mm"), "{e}");
+        assert_eq!(e.field(), Some("opt-width_mm"));
+        let e: ApiError = SliceError::OutsideTravel {
+            what: "logo.png".into(),
+            axis: "x",
+            lo: -5.0,
+            hi: 20.0,
+            min: 0.0,
+            max: 200.0,
+        }
+        .into();
+        assert!(!e.message().contains("--"), "{e}");
+        assert_eq!(e.field(), Some("opt-origin"));
+    }
+}

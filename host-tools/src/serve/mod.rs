@@ -6,13 +6,18 @@
 //! board, the simulated board among them through `simlink`).
 
 pub mod assets;
+pub mod auth;
 pub mod boards;
 pub mod calibrate;
+pub mod clock;
+pub mod controls;
 pub mod design;
 pub mod error;
+pub mod history;
 pub mod jobs;
 pub mod lock;
 pub mod routes;
+pub mod samples;
 pub mod simlink;
 pub mod simulate;
 pub mod state;
@@ -31,13 +36,21 @@ pub const MAX_UPLOAD: usize = 64 << 20;
 #[command(after_help = "Examples:\n  \
 dollop serve --demo\n  \
 dollop serve --config machine.toml --board /dev/ttyACM0\n\n\
-The dashboard listens on 127.0.0.1 only unless --listen says otherwise. It has no \
-authentication: anyone who can reach the address can drive the printer.")]
+The dashboard listens on 127.0.0.1 only unless --listen says otherwise; beyond this \
+computer it needs --auth KEY (every page, API call and the status stream then ask for it).")]
 pub struct Args {
     /// Address and port to listen on (127.0.0.1: this computer only; 0.0.0.0: every
-    /// network this computer is on, with no authentication).
+    /// network this computer is on, which needs --auth).
     #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:7125")]
     pub listen: SocketAddr,
+    /// Port to listen on (replaces the port of --listen).
+    #[arg(long, value_name = "PORT")]
+    pub port: Option<u16>,
+    /// An API key or password (8 characters or more) every request must carry: a browser
+    /// signs in once, scripts send `Authorization: Bearer KEY`. Required when --listen is
+    /// not a loopback address.
+    #[arg(long, value_name = "KEY")]
+    pub auth: Option<String>,
     /// Machine config (TOML) offered first on the pages, besides the bundled ones.
     #[arg(long, value_name = "MACHINE.toml")]
     pub config: Option<PathBuf>,
@@ -57,6 +70,19 @@ pub struct Args {
     /// Simulated boards to list (a lab's printers without the printers), 1 to 8.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub sim_boards: usize,
+    /// Folder kept across restarts (the print history); default: `dollop` under the
+    /// user's data folder ($XDG_DATA_HOME, else ~/.local/share).
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
+}
+
+/// The data folder `dollop serve` uses when `--data` names none.
+pub fn default_data_dir() -> Option<PathBuf> {
+    let base = match std::env::var_os("XDG_DATA_HOME").filter(|d| !d.is_empty()) {
+        Some(d) => PathBuf::from(d),
+        None => PathBuf::from(std::env::var_os("HOME")?).join(".local/share"),
+    };
+    Some(base.join("dollop"))
 }
 
 /// A running server: where it listens, and its state (tests look inside).
@@ -75,10 +101,19 @@ pub async fn start(a: Args) -> anyhow::Result<Running> {
     if !(1..=8).contains(&a.sim_boards) {
         anyhow::bail!("--sim-boards {} must be between 1 and 8", a.sim_boards);
     }
+    let listen = match a.port {
+        Some(p) => SocketAddr::new(a.listen.ip(), p),
+        None => a.listen,
+    };
+    if !listen.ip().is_loopback() && a.auth.is_none() {
+        anyhow::bail!(
+            "listening on {listen} lets anyone on the network drive the printer: give --auth KEY (a key or password every request must carry), or listen on 127.0.0.1"
+        );
+    }
     let state = Arc::new(state::AppState::new(&a)?);
-    let listener = tokio::net::TcpListener::bind(a.listen)
+    let listener = tokio::net::TcpListener::bind(listen)
         .await
-        .with_context(|| format!("cannot listen on {}", a.listen))?;
+        .with_context(|| format!("cannot listen on {listen}"))?;
     let addr = listener
         .local_addr()
         .context("the listener has no address")?;
@@ -97,15 +132,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
+    let mut a = a;
+    if a.data.is_none() {
+        a.data = default_data_dir();
+    }
     rt.block_on(async move {
-        let exposed = !a.listen.ip().is_loopback();
+        let guarded = a.auth.is_some();
         let r = start(a).await?;
         println!("dollop dashboard: http://{}/", r.addr);
-        if exposed {
-            println!(
-                "warning: listening beyond this computer with no authentication: anyone who reaches {} can drive the printer",
-                r.addr
-            );
+        if guarded {
+            println!("every request needs the --auth key (a browser signs in at /login)");
         }
         tokio::signal::ctrl_c()
             .await

@@ -31,10 +31,17 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/", get(assets::index))
         .route("/assets/app.js", get(assets::js))
         .route("/assets/app.css", get(assets::css))
+        .route("/favicon.svg", get(assets::favicon))
+        .route("/favicon.ico", get(assets::favicon))
+        .route(
+            "/login",
+            get(super::auth::login_page).post(super::auth::login),
+        )
         .route("/api/info", get(info))
         .route("/api/configs/{i}", get(config_get))
         .route("/api/config/check", post(config_check))
         .route("/api/designs/{i}", get(bundled_design))
+        .route("/api/samples/{i}", get(sample))
         .route("/api/slice", post(slice))
         .route("/api/jobs/{id}", get(job_get))
         .route("/api/jobs/{id}/{file}", get(job_file))
@@ -44,9 +51,14 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/sims/{id}/{file}", get(sim_file))
         .route("/api/calibrate/{what}", post(calibrate))
         .route("/api/boards/events", get(board_events))
+        .route("/api/history", get(history))
         .route("/api/boards/{id}/{action}", post(board_action))
         .fallback(|| async { ApiError::missing("no such page") })
         .layer(DefaultBodyLimit::max(super::MAX_UPLOAD))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            super::auth::guard,
+        ))
         .with_state(state)
 }
 
@@ -66,7 +78,19 @@ async fn info(State(st): St) -> Json<serde_json::Value> {
         "camera_max_frames": super::calibrate::CAMERA_LIMITS.max_frames,
         "camera_max_pixels": super::calibrate::CAMERA_LIMITS.max_pixels,
         "demo_job": st.demo_job,
+        "samples": super::samples::SAMPLES
+            .iter()
+            .map(|s| json!({ "name": s.name, "what": s.what, "with": s.with }))
+            .collect::<Vec<_>>(),
         "boards": st.boards.len(),
+    }))
+}
+
+async fn history(State(st): St) -> Json<serde_json::Value> {
+    Json(json!({
+        "records": st.history.list(),
+        "stats": st.history.stats(),
+        "skipped": st.history.skipped,
     }))
 }
 
@@ -125,6 +149,13 @@ async fn bundled_design(Path(i): Path<usize>) -> ApiResult<Response> {
         bytes.to_vec(),
     )
         .into_response())
+}
+
+async fn sample(Path(i): Path<usize>) -> ApiResult<Response> {
+    let s = super::samples::SAMPLES
+        .get(i)
+        .ok_or_else(|| ApiError::missing("no such sample"))?;
+    Ok(download(s.name.to_string(), s.bytes.to_vec()))
 }
 
 fn mime(name: &str) -> String {
@@ -492,7 +523,7 @@ async fn board_action(
                 .map_err(|e| {
                     ApiError::bad(format!(
                         "the config chosen on the Design page does not check ({}); fix it there first",
-                        e.error
+                        e.message()
                     ))
                 }),
             None => Ok(st.cli_config.clone().map(Box::new)),
@@ -556,7 +587,7 @@ fn design_config(text: Option<&str>) -> ApiResult<Option<dollop::config::Config>
                 .map_err(|e| {
                     ApiError::bad(format!(
                         "the Design page's config does not check ({}); fix it there first",
-                        e.error
+                        e.message()
                     ))
                 })?
                 .config,
@@ -610,7 +641,7 @@ async fn calibrate(
     if let Err(e) = read {
         // Frames over the byte limit: say what to do with frames, not with a design.
         return Err(
-            if what == "camera" && e.status == axum::http::StatusCode::PAYLOAD_TOO_LARGE {
+            if what == "camera" && e.status() == axum::http::StatusCode::PAYLOAD_TOO_LARGE {
                 super::calibrate::frames_too_large()
             } else {
                 e

@@ -42,6 +42,10 @@ pub struct AppState {
     /// `--config`, checked: what home, jog and valve tests load on a board without a
     /// config when the page names none.
     pub cli_config: Option<Config>,
+    /// `--auth`: the key every request must carry.
+    pub auth: Option<super::auth::Auth>,
+    /// Prints that ended (kept in `--data` when given).
+    pub history: Arc<super::history::History>,
 }
 
 impl AppState {
@@ -53,7 +57,7 @@ impl AppState {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read config {}", p.display()))?;
             let checked = design::check(&text)
-                .map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.error))?;
+                .map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.message()))?;
             cli_config = Some(checked.config);
             configs.push(ConfigChoice {
                 name: p
@@ -69,7 +73,15 @@ impl AppState {
                 text: t.to_string(),
             });
         }
-        let boards = boards::start_all(a);
+        let history = Arc::new(match &a.data {
+            Some(dir) => {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("cannot create the data folder {}", dir.display()))?;
+                super::history::History::open(dir)?
+            }
+            None => super::history::History::memory(),
+        });
+        let boards = boards::start_all(a, &history);
         let mut st = AppState {
             configs,
             jobs: Mutex::new(BTreeMap::new()),
@@ -79,11 +91,13 @@ impl AppState {
             tabs: Mutex::new(HashMap::new()),
             demo_job: None,
             cli_config,
+            auth: a.auth.as_deref().map(super::auth::Auth::new).transpose()?,
+            history,
         };
         if a.demo {
             let text = design::BUNDLED[0].1;
             let checked =
-                design::check(text).map_err(|e| anyhow::anyhow!("demo config: {}", e.error))?;
+                design::check(text).map_err(|e| anyhow::anyhow!("demo config: {}", e.message()))?;
             let uploads = [Upload {
                 name: design::DESIGNS[0].0.into(),
                 bytes: design::DESIGNS[0].1.to_vec(),
@@ -93,7 +107,7 @@ impl AppState {
                 ..Default::default()
             };
             let sliced = design::slice(&uploads, &checked.config, &form)
-                .map_err(|e| anyhow::anyhow!("demo design: {}", e.error))?;
+                .map_err(|e| anyhow::anyhow!("demo design: {}", e.message()))?;
             st.demo_job = Some(st.add_job(checked.config, text.to_string(), sliced).id);
         }
         Ok(st)

@@ -37,7 +37,7 @@ pub enum SliceError {
         source: std::io::Error,
     },
     /// The extension is neither an image nor a mesh format this build reads.
-    #[error("{}: unknown design format (expected .png, .jpg, .jpeg, .bmp, .stl or .3mf)", .path.display())]
+    #[error("{}: unknown design format (expected .png, .jpg, .jpeg, .bmp, .stl, .3mf, or G-code: .gcode)", .path.display())]
     UnknownFormat {
         /// The file.
         path: PathBuf,

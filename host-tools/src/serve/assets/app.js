@@ -44,12 +44,27 @@ function showError(id, msg) {
   e.hidden = !msg;
 }
 
+// An error the server tied to one of the page's inputs (its id): marked there until edited.
+function markField(err) {
+  const input = err && err.field ? document.getElementById(err.field) : null;
+  if (!input) return;
+  input.classList.add("bad-input");
+  input.addEventListener("input", () => input.classList.remove("bad-input"), { once: true });
+  const details = input.closest("details");
+  if (details) details.open = true;
+}
+
 async function api(path, opts = {}) {
   let r;
   try {
     r = await fetch(path, opts);
   } catch (e) {
     throw new Error("the dashboard server does not answer (is dollop serve still running?)");
+  }
+  if (r.status === 401) {
+    // The dashboard asks for its key (dollop serve --auth) and this browser has none now.
+    location.href = "/login";
+    throw new Error("sign in first");
   }
   const type = r.headers.get("content-type") || "";
   const body = type.includes("json") ? await r.json() : await r.text();
@@ -239,8 +254,10 @@ $("slice").addEventListener("click", async () => {
     setJob(await upload("/api/slice", form, $("upload-progress")));
     toast("Sliced.");
   } catch (e) {
-    if (e.field) showConfigError(e);
+    // A config path goes to the config editor; a slicing option's input is marked.
+    if (e.field && !document.getElementById(e.field)) showConfigError(e);
     showError("slice-error", e.message);
+    markField(e);
   } finally {
     b.disabled = false;
     b.textContent = "Slice";
@@ -421,6 +438,8 @@ async function showSim(sim) {
     const f = r.figures;
     $("sim-status").textContent = `done: ${f.state}, ${fmtTime(f.time_s)} of printing` + (f.fault ? `, fault: ${f.fault}` : "");
     $("heatmap").src = `/api/sims/${sim}/heatmap.png`;
+    $("heatmap").hidden = false;
+    $("heatmap-none").hidden = true;
     $("sim-downloads").replaceChildren(
       el("a", { href: `/api/jobs/${app.job.id}/job.dlp` }, "job (.dlp)"),
       el("a", { href: `/api/jobs/${app.job.id}/job.gcode` }, "G-code"),
@@ -445,7 +464,23 @@ function setSeries(s) {
   drawPlots();
 }
 
-function drawPlot(canvas, title, unit, lines) {
+// Axis ticks at 1, 2 or 5 times a power of ten, about `n` of them over lo..hi.
+function niceTicks(lo, hi, n) {
+  const raw = (hi - lo) / Math.max(n, 1);
+  const p = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw) || 10 * p;
+  const out = [];
+  for (let v = Math.ceil(lo / step - 1e-9) * step; v <= hi + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-6 ? 0 : v);
+  return { ticks: out, step };
+}
+
+// A tick's label: as many decimals as the step needs, never exponent noise (2.54e-43).
+function tickLabel(v, step) {
+  const d = Math.max(0, Math.min(6, -Math.floor(Math.log10(step) + 1e-9)));
+  return v.toFixed(d);
+}
+
+function drawPlot(canvas, title, unit, lines, intTicks) {
   const g = canvas.getContext("2d");
   const W = canvas.width, H = canvas.height, L = 60, R = 10, T = 18, B = 20;
   g.clearRect(0, 0, W, H);
@@ -459,18 +494,33 @@ function drawPlot(canvas, title, unit, lines) {
     if (isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
   }
   if (!isFinite(lo)) { lo = 0; hi = 1; }
+  // Numerical dust (a pressure of 1e-43 kPa) is zero.
+  if (Math.abs(lo) < 1e-9) lo = 0;
+  if (Math.abs(hi) < 1e-9) hi = 0;
   if (hi - lo < 1e-9) { hi = lo + 1; }
+  const yt = intTicks ? { ticks: intTicks, step: 1 } : niceTicks(lo, hi, Math.max(2, Math.floor((H - T - B) / 30)));
+  if (!intTicks) { lo = Math.min(lo, yt.ticks[0]); hi = Math.max(hi, yt.ticks[yt.ticks.length - 1]); }
   const X = (t) => L + (t - t0) / (t1 - t0) * (W - L - R);
   const Y = (v) => H - B - (v - lo) / (hi - lo) * (H - T - B);
   g.font = "12px sans-serif";
   g.fillStyle = "#333";
   g.fillText(`${title} (${unit})`, L, 12);
   g.fillStyle = "#777";
-  g.fillText(hi.toPrecision(3), 2, T + 8);
-  g.fillText(lo.toPrecision(3), 2, H - B);
-  g.fillText(`${t0.toFixed(2)} s`, L, H - 4);
-  g.fillText(`${t1.toFixed(2)} s`, W - R - 60, H - 4);
-  g.strokeStyle = "#ddd";
+  g.strokeStyle = "#eee";
+  g.textAlign = "right";
+  for (const v of yt.ticks) {
+    if (v < lo - 1e-9 || v > hi + 1e-9) continue;
+    g.beginPath(); g.moveTo(L, Y(v)); g.lineTo(W - R, Y(v)); g.stroke();
+    g.fillText(intTicks ? String(v) : tickLabel(v, yt.step), L - 4, Y(v) + 4);
+  }
+  g.textAlign = "center";
+  const xt = niceTicks(t0, t1, Math.max(2, Math.floor((W - L - R) / 110)));
+  for (const t of xt.ticks) {
+    g.beginPath(); g.moveTo(X(t), T); g.lineTo(X(t), H - B); g.stroke();
+    g.fillText(`${tickLabel(t, xt.step)} s`, X(t), H - 4);
+  }
+  g.textAlign = "left";
+  g.strokeStyle = "#ccc";
   g.strokeRect(L, T, W - L - R, H - T - B);
   for (const ln of lines) {
     g.strokeStyle = ln.colour;
@@ -501,7 +551,7 @@ function drawPlots() {
   drawPlot($("plot-speed"), "head speed", "mm/s", [{ y: s.speed, colour: "#2f6f5e" }]);
   drawPlot($("plot-flow"), "flow", "mm³/s", [{ y: s.flow, colour: "#3a7bd5" }]);
   drawPlot($("plot-pressure"), "line pressure", "kPa", s.pressure.map((p, i) => ({ y: p, colour: COLOURS[i % 8], name: `${i}: ${s.materials[i]}` })));
-  drawPlot($("plot-valves"), "valves open", "inlet", s.materials.map((m, i) => ({ y: s.valves.map((v) => (v >> i) & 1 ? i + 0.8 : i), colour: COLOURS[i % 8], name: `${i}` })));
+  drawPlot($("plot-valves"), "valves open", "inlet", s.materials.map((m, i) => ({ y: s.valves.map((v) => (v >> i) & 1 ? i + 0.8 : i), colour: COLOURS[i % 8], name: `${i}` })), s.materials.map((m, i) => i));
 }
 
 for (const c of document.querySelectorAll("canvas.plot")) {
@@ -630,24 +680,32 @@ async function drawBoard(id) {
 function renderBoards(data) {
   if (!data) return;
   lastBoards = data;
+  renderHeader(data);
+  // A print that ended: the history has a new record.
+  for (const b of data.boards) {
+    const ended = /^(finished|aborted|halted)/.test(b.activity);
+    if (ended && lastActivity[b.id] !== b.activity) setTimeout(loadHistory, 300);
+    lastActivity[b.id] = b.activity;
+  }
   const box = $("boards");
   for (const b of data.boards) {
     let card = box.querySelector(`.board[data-board="${b.id}"]`);
     if (!card) box.append((card = boardCard(b)));
     const q = (s) => card.querySelector(s);
     q(".state").textContent = b.connected ? b.activity : "not connected";
-    // Pause applies to a running print, Resume to a paused (or pausing) one.
-    const pausedish = b.run === "Paused" || b.run === "Pausing";
-    q('[data-action="pause"]').disabled = !(b.mode === "Job" && !pausedish);
-    q('[data-action="resume"]').disabled = !(b.mode === "Job" && pausedish);
-    // Park: pause (or, paused, leave the pause point) to the config's park position; not
-    // while a park is on its way (the head is off the pause point).
-    const offPoint = b.run === "Paused" && b.pause_point && Math.hypot(b.position[0] - b.pause_point[0], b.position[1] - b.pause_point[1], b.position[2] - b.pause_point[2]) > 0.001;
-    q('[data-action="park"]').disabled = !(b.mode === "Job" && b.run !== "Done" && b.run !== "Aborted" && !offPoint);
+    // Each control acts only where the board can (the server's rule, the reason on hover).
+    for (const button of card.querySelectorAll("button[data-action]")) {
+      const action = button.dataset.action;
+      const why = action === "send" ? (app.job ? null : "slice a design first (Design page)") : (b.refused || {})[action];
+      button.disabled = !!why;
+      button.title = why || "";
+    }
     card.dataset.activity = b.activity;
     card.dataset.run = b.run;
     card.dataset.progress = String(b.progress);
     card.dataset.seq = String(b.seq);
+    card.dataset.elapsed = String(b.elapsed_s);
+    card.dataset.eta = b.eta_s == null ? "" : String(b.eta_s);
     q(".seq").textContent = `(${b.mode}, update ${b.seq})`;
     const ctl = data.controllers[b.id];
     const other = ctl && ctl !== TAB;
@@ -658,7 +716,8 @@ function renderBoards(data) {
     q(".job-line").textContent = b.job ? `Job: ${b.job.name} (${b.command} of ${b.commands} commands, layer ${b.layer})` : "No job sent yet.";
     q(".print-progress").value = b.progress;
     const valves = [0, 1, 2, 3].map((i) => ((b.valves >> i) & 1 ? "●" : "○")).join("");
-    q(".live").textContent = `${(b.progress * 100).toFixed(1)} %  ETA ${fmtTime(b.eta_s)}  elapsed ${fmtTime(b.elapsed_s)}\n` +
+    const finish = b.finish_unix_ms && b.eta_s > 0 ? `  finishes at ${new Date(b.finish_unix_ms).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit" })}` : "";
+    q(".live").textContent = `${(b.progress * 100).toFixed(1)} %  ETA ${fmtTime(b.eta_s)}${finish}  elapsed ${fmtTime(b.elapsed_s)}\n` +
       `x ${b.position[0].toFixed(2)} y ${b.position[1].toFixed(2)} z ${b.position[2].toFixed(2)} mm  valves ${valves}  ${b.speed.toFixed(1)} mm/s  ${b.homed ? "homed" : "not homed"}\n` +
       (b.flow_source === "plant"
         ? `flow ${b.flow.toFixed(2)} mm³/s (reference plant; the board's model says ${b.flow_model.toFixed(2)})  lines ${b.line_kpa.map((p) => p.toFixed(1)).join(" / ")} kPa`
@@ -666,16 +725,56 @@ function renderBoards(data) {
       (b.pause_latency_ms
         ? `\npause: valves shut ${fmtMs(b.pause_latency_ms[0])}, head at rest ${fmtMs(b.pause_latency_ms[1])} after the request (as polled)`
         : "");
-    q(".live").style.whiteSpace = "pre";
     q(".upload-row").hidden = !b.upload;
     if (b.upload) {
       q(".upload-progress").value = b.upload[0] / Math.max(b.upload[1], 1);
       q(".upload-text").textContent = ` ${b.upload[0]} of ${b.upload[1]} bytes`;
     }
-    q(".queue").replaceChildren(b.queue.length ? "Queue: " : "", ...b.queue.map((j) => el("span", {}, `${j.name} (job ${j.job}) `, el("button", { onclick: () => boardAction(b.id, "unqueue", { job: j.job }) }, "remove"), " ")));
+    // Rebuilt only when the queue changes: a row under the pointer stays the same element
+    // through the ten updates a second (a held click lands on it).
+    const queueKey = b.queue.map((j) => j.job).join(",");
+    if (q(".queue").dataset.key !== queueKey) {
+      q(".queue").dataset.key = queueKey;
+      q(".queue").replaceChildren(b.queue.length ? "Queue: " : "", ...b.queue.map((j) => el("span", { class: "queued", "data-job": String(j.job) }, `${j.name} (job ${j.job}) `, el("button", { class: "unqueue", onclick: () => boardAction(b.id, "unqueue", { job: j.job }) }, "remove"), " ")));
+    }
     if (!$("page-print").hidden) drawBoard(b.id);
   }
 }
+
+// The header, on every page: each board's state and its print's progress, with its Abort
+// (the emergency stop is never a page away). Rebuilt only when the boards or which of
+// them are connected change; the text is updated in place.
+function renderHeader(data) {
+  const box = $("header-boards");
+  const key = data.boards.map((b) => `${b.id}:${b.connected}`).join(",");
+  if (box.dataset.key !== key) {
+    box.dataset.key = key;
+    box.replaceChildren(...data.boards.map((b) => el("span", { class: "badge", "data-board": String(b.id) },
+      el("span", { class: "badge-text" }),
+      ...(b.connected ? [el("button", { class: "abort-now", title: `stop ${b.name} now (valves shut, motion stops)`, onclick: () => boardAction(b.id, "abort") }, "Abort")] : []))));
+  }
+  for (const b of data.boards) {
+    const badge = box.querySelector(`.badge[data-board="${b.id}"]`);
+    if (!badge) continue;
+    const state = b.connected ? b.activity.split(":")[0] : "not connected";
+    const pct = b.job && (b.mode === "Job" || b.progress > 0) ? ` ${(b.progress * 100).toFixed(0)} %` : "";
+    badge.querySelector(".badge-text").textContent = `${data.boards.length > 1 ? b.id + ": " : ""}${state}${pct}`;
+    badge.dataset.state = b.fault ? "fault" : b.mode === "Job" ? "printing" : b.connected ? "idle" : "off";
+  }
+}
+
+// The print history (newest first) and its totals; kept across restarts with --data.
+async function loadHistory() {
+  let h;
+  try { h = await api("/api/history"); } catch (_) { return; }
+  const s = h.stats;
+  if (s.prints) $("history-stats").textContent = `${s.prints} print${s.prints > 1 ? "s" : ""}: ${s.finished} finished, ${s.aborted} aborted, ${s.halted} halted; ${fmtTime(s.printing_s)} printing in all.`;
+  const rows = h.records.slice(-20).reverse().map((r) => el("tr", { "data-outcome": r.outcome },
+    el("td", {}, new Date(r.ended_unix_s * 1000).toLocaleString()), el("td", {}, r.board_name), el("td", {}, r.job),
+    el("td", {}, r.outcome), el("td", {}, fmtTime(r.printing_s)), el("td", {}, `${r.command} of ${r.commands}`)));
+  $("history").replaceChildren(...rows);
+}
+const lastActivity = {};
 
 function followBoards() {
   const es = new EventSource(`/api/boards/events?tab=${encodeURIComponent(TAB)}`);
@@ -689,11 +788,31 @@ function followBoards() {
 // ---------------------------------------------------------------- calibrate
 let calFragment = null;
 let calFrames = [];  // File objects chosen as camera frames, in file-name order
-$("cal-file").addEventListener("change", (e) => { $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : ""; });
+$("cal-file").addEventListener("change", (e) => {
+  $("cal-name").textContent = e.target.files[0] ? e.target.files[0].name : "";
+  if (e.target.files[0]) $("cal-sample").value = "";
+});
+// The bundled samples for the chosen fit; choosing one fills in what it needs.
+function listSamples() {
+  const what = $("cal-what").value;
+  const list = (app.info && app.info.samples) || [];
+  $("cal-sample").replaceChildren(el("option", { value: "" }, "none"),
+    ...list.map((s, i) => [s, i]).filter(([s]) => s.what === what).map(([s, i]) => el("option", { value: String(i) }, s.name)));
+}
+$("cal-sample").addEventListener("change", () => {
+  const i = $("cal-sample").value;
+  if (i === "") return;
+  const s = app.info.samples[Number(i)];
+  $("cal-file").value = "";
+  $("cal-name").textContent = s.name;
+  if (s.what === "flow" && s.with) $("cal-density").value = s.with;
+  if (s.what === "lag" && s.with) $("cal-lag-inlet").value = s.with;
+});
 function calWhatChanged() {
   const what = $("cal-what").value;
   for (const e of document.querySelectorAll("#page-calibrate [data-for]")) e.hidden = !e.dataset.for.split(" ").includes(what);
   $("cal-name").hidden = what === "camera";
+  listSamples();
 }
 $("cal-what").addEventListener("change", calWhatChanged);
 // The server takes the frames in file-name order: list them so.
@@ -729,8 +848,16 @@ $("cal-run").addEventListener("click", async () => {
   if (what === "camera") {
     try { cameraForm(form); } catch (e) { return showError("cal-error", e.message); }
   } else {
-    const f = $("cal-file").files[0];
-    if (!f) return showError("cal-error", "Choose a measurement CSV first.");
+    let f = $("cal-file").files[0];
+    const sample = $("cal-sample").value;
+    if (!f && sample !== "") {
+      // A bundled sample, fetched as the file a user would have chosen.
+      const s = app.info.samples[Number(sample)];
+      const r = await fetch(`/api/samples/${sample}`);
+      if (!r.ok) return showError("cal-error", `the sample ${s.name} did not load`);
+      f = new File([await r.blob()], s.name, { type: "text/csv" });
+    }
+    if (!f) return showError("cal-error", "Choose a measurement CSV (or a bundled sample) first.");
     form.append("data", f, f.name);
     form.append("kind", $("cal-kind").value);
     form.append("inlet", $("cal-lag-inlet").value);
@@ -747,8 +874,11 @@ $("cal-run").addEventListener("click", async () => {
     calFragment = r.fragment;
     $("cal-fragment").textContent = r.fragment || (what === "camera" ? "(no fragment: give the target line width for the head speed to write)" : "(no fragment: see the verdicts)");
     $("cal-plot").src = "data:image/png;base64," + r.plot_png_base64;
+    $("cal-plot").hidden = false;
+    $("cal-plot-none").hidden = true;
   } catch (e) {
     showError("cal-error", e.message);
+    markField(e);
   } finally {
     run.disabled = false;
   }
@@ -785,6 +915,7 @@ $("cal-apply").addEventListener("click", async () => {
       : inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
   } catch (e) {
     showError("cal-error", e.message);
+    markField(e);
   }
 });
 
@@ -798,6 +929,8 @@ $("cal-apply").addEventListener("click", async () => {
   for (const e of document.querySelectorAll(".max-upload")) e.textContent = app.info.max_upload_mb;
   $("cam-max-frames").textContent = app.info.camera_max_frames;
   $("cam-max-pixels").textContent = app.info.camera_max_pixels / 1e6;
+  listSamples();
+  loadHistory();
   const sel = $("config-select");
   app.info.configs.forEach((n, i) => sel.append(el("option", { value: String(i) }, n)));
   const bundled = $("bundled");

@@ -1,0 +1,15 @@
+; square-abs-e.gcode with relative E
+G21
+G90
+M83
+G28
+M104 S0
+G1 Z0.6 F600
+G1 X50 Y50 F3000
+T0
+G1 X60 Y50 E1.0
+G1 X60 Y60 E1.0
+G1 X62 Y62
+T1
+G1 X62 Y70 E0.8
+G1 X50 Y70 E1.2

@@ -1,0 +1,308 @@
+//! Ramp windows per valve decision (issue 22): at the decision to open, switch or close
+//! the valves, the window the head's speed ramp needs for the flow change they are about
+//! to make, sized from the channel's contents then. The machine's one window is sized
+//! for the fastest change the valves can make anywhere (paste B's line closing into a
+//! channel still full of paste A); most decisions make far slower ones, and that window's
+//! mean only smears them over the bead. This sizes one decision's window; the ramp ring
+//! narrows or widens its mean to it (`Ramp::set_goal`); what is not sized here (steps of
+//! pressure, power-law pastes, syringes, unequal dead times) keeps the machine's window.
+
+use crate::config::{Machine, RAMP_SHARE};
+use crate::flow_model::FlowModel;
+use crate::real::Real;
+
+/// Whether switching from the inlets of `closing` to inlet `opening` (bit masks, one bit
+/// for the opening) moves the head's speed within the ramps' share of the X/Y limit with
+/// no window. Newtonian contents and pneumatic lines with first-order pressure changes
+/// of equal dead times only; anything else (a step of pressure, a power-law paste, a
+/// syringe) is `false`, the machine's window.
+///
+/// The closing line's flow (the channel's now, `v_c`) decays as `exp(-t / tau_d)`, the
+/// opening one's (its supply through the contents now, `v_o`) rises as
+/// `1 - exp(-t / tau_r)`; the head's acceleration is
+/// `a(t) = v_o / tau_r exp(-t / tau_r) - v_c / tau_d exp(-t / tau_d)`, largest in size at
+/// the start or where its derivative vanishes. The channel's contents change as the new
+/// paste enters it, over the channel's transit, far slower.
+/// Half the window (frames) the head's mean needs for the valves going from the inlets of
+/// `closing` (bit mask) to `opening` (none: closing only), or `None` for the machine's.
+/// Newtonian contents and one closing, one opening pneumatic line of first-order
+/// pressure changes with equal dead times only.
+///
+/// After the dead time the closing line's pressure decays as `exp(-t / tau_d)` and the
+/// opening one's rises as `1 - exp(-t / tau_r)`; the junction follows the higher, so the
+/// head's speed (the flow over the bead section) is
+/// `v(t) = max(v_c exp(-t / tau_d), v_o (1 - exp(-t / tau_r)))`, `v_c` the channel's
+/// speed now and `v_o` the opening line's supply through the contents now. The window
+/// is the longer of the decay's from its start and the rise's from where it overtakes
+/// the decay. The contents change as the new paste enters the channel, over its
+/// transit, far slower. Once per decision: three Newton steps and two more per window
+/// (an `expf` or two each), never per tick.
+///
+/// The window is never shorter than the bead's tight turns ahead need (`turns`, nearest
+/// first, `turn_window`), nor than a millisecond (`min_half`): a window narrowed for the
+/// flow shows the head every fillet, and every rounding of the plan, that the machine's
+/// long window smoothed. Of the two, the millisecond took the logo at 500 mm/s^2 from
+/// 610 to 519 / 534 mm/s^2 on X / Y; sized at the flushed speed, no turn of the four
+/// designs measured (chessboard, random pattern, logo, fine features) widened a window.
+pub fn switch_half<R: Real, const N: usize>(
+    m: &Machine<R, N>,
+    model: &FlowModel<R, N>,
+    closing: u32,
+    opening: Option<u8>,
+    turns: impl Iterator<Item = Turn>,
+) -> Option<u32> {
+    // A channel holding more than one paste changes its resistance as they move, on top
+    // of what the valves do: the machine's window (0.6 mm stripes at 500 mm/s^2 reached
+    // 685 mm/s^2 sized as if it held one).
+    if model.syringes() || !model.all_linear() || model.channel().len() > 1 {
+        return None;
+    }
+    let open = match opening {
+        Some(o) => Some(m.inlets.get(o as usize)?),
+        None => None,
+    };
+    let mut close = None;
+    for (i, inlet) in m.inlets.iter().enumerate() {
+        if closing & (1 << i) != 0 && opening != Some(i as u8) {
+            if close.is_some() {
+                return None;
+            }
+            close = Some(inlet);
+        }
+    }
+    let r = model.resistance_linear().to_f32();
+    let s = m.bead_area.to_f32();
+    let (tau_r, tau_d) = (
+        open.map_or(1.0, |o| o.rise_s.to_f32()),
+        close.map_or(1.0, |c| c.decay_s.to_f32()),
+    );
+    if !(r > 0.0 && s > 0.0 && tau_r > 0.0 && tau_d > 0.0) {
+        return None;
+    }
+    if let (Some(c), Some(o)) = (close, open) {
+        if c.close_delay_s.to_f32() != o.open_delay_s.to_f32() {
+            return None;
+        }
+    }
+    let v_o = open.map_or(0.0, |o| o.supply_pa.to_f32() / r / s);
+    let v_c = if close.is_some() {
+        model.q().to_f32() / s
+    } else {
+        0.0
+    };
+    let limit = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32() * RAMP_SHARE as f32;
+    // The decay from the kink: the steepest chord of a falling exponential starts there.
+    let mut w = window(v_c, tau_d, limit);
+    if v_o > 0.0 {
+        // The rise takes over where it crosses the decay; Newton from below the crossing
+        // (the difference is concave and rising) stays below it, so what is left of the
+        // rise is never underestimated.
+        let mut t = if v_c > 0.0 {
+            v_c / (v_o / tau_r + v_c / tau_d)
+        } else {
+            0.0
+        };
+        if v_c > 0.0 {
+            for _ in 0..3 {
+                let (er, ed) = (libm::expf(-t / tau_r), libm::expf(-t / tau_d));
+                let g = v_o * (1.0 - er) - v_c * ed;
+                let dg = v_o / tau_r * er + v_c / tau_d * ed;
+                if !(g < 0.0 && dg > 0.0) {
+                    break;
+                }
+                t -= g / dg;
+            }
+        }
+        w = w.max(window(v_o * libm::expf(-t / tau_r), tau_r, limit));
+    }
+    // The flow's change lies within the dead time and a few time constants of the
+    // decision; a turn there meets it. Past the channel's flush the head moves at the
+    // opening paste's own speed through a channel full of it (a bead's end: the closing
+    // speed, at most). Before the flush it may be faster (paste B opening into paste A),
+    // but sizing the turns for that took the chessboard's every window back to the
+    // machine's (section 14.5 % off at 500 mm/s^2): they are sized for the flushed speed.
+    let v = v_o.max(v_c);
+    let delay = m.inlets.iter().fold(0.0f32, |d, i| {
+        d.max(i.open_delay_s.max(i.close_delay_s).to_f32())
+    });
+    let settle = 4.0
+        * open
+            .map_or(0.0, |_| tau_r)
+            .max(close.map_or(0.0, |_| tau_d));
+    let near = v * (delay + settle + w);
+    let total: f32 = model
+        .channel()
+        .in_channel()
+        .iter()
+        .map(|x| x.mm3::<f32>())
+        .sum();
+    let v_turn = match open {
+        Some(inlet) if inlet.law.a.to_f32() * total > 0.0 => {
+            (inlet.supply_pa.to_f32() / (inlet.law.a.to_f32() * total) / s).min(v)
+        }
+        _ => v,
+    };
+    w = w.max(turn_window(v_turn, near, limit, turns));
+    let cycles = w / m.dt().to_f32();
+    let half = m.ramp_cycles / 2;
+    if cycles.is_nan() || cycles < 0.0 || cycles >= (2 * half + 1) as f32 {
+        return None;
+    }
+    let h = (libm::ceilf(cycles) as u32) / 2;
+    Some(h.max(min_half(m, limit)))
+}
+
+/// A fillet of the bead ahead: `radius` mm, turning the head from unit `from` to unit
+/// `to`, starting `at` mm along the path ahead of the head.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Turn {
+    /// Where the fillet starts, mm of path ahead of the head.
+    pub at: f32,
+    /// Its radius, mm.
+    pub radius: f32,
+    /// Unit direction into the turn.
+    pub from: [f32; 2],
+    /// Unit direction out of it.
+    pub to: [f32; 2],
+}
+
+/// Turns looked at per decision (bounds the decision's cost; a bead's turns past them
+/// keep what the window is by then).
+pub const TURNS_AHEAD: usize = 64;
+
+/// The shortest window (s) whose mean takes the head through the tight turns ahead
+/// within `limit` at speeds up to `v`. The mean's acceleration is the change of the
+/// planned velocity across the window over its length, so a turn from unit `from` to
+/// `to` whose fillet is tighter than `v^2 / limit` (a segment too short for the
+/// machine's radius) needs `v |to - from| / limit`, and two in a row within the window
+/// (a U-turn between rows) their pair's change. A turn within `near` mm of the head may
+/// meet the flow's own change, from speed 0 ..= `v` to another: the velocity's change
+/// across the window is then at most `v max(|to - from|, 1)` (their vector sum: the
+/// largest of `|v2 to - v1 from|` lies at a corner of the speeds' square).
+fn turn_window(v: f32, near: f32, limit: f32, turns: impl Iterator<Item = Turn>) -> f32 {
+    let chord = |a: [f32; 2], b: [f32; 2]| {
+        let (x, y) = (a[0] - b[0], a[1] - b[1]);
+        libm::sqrtf(x * x + y * y)
+    };
+    let mut w = 0.0f32;
+    let mut prev: Option<(Turn, bool)> = None;
+    for t in turns.take(TURNS_AHEAD) {
+        let close = t.at < near;
+        let need = |c: f32| if close { v * c.max(1.0) } else { v * c } / limit;
+        let tight = t.radius * limit < v * v;
+        if tight {
+            w = w.max(need(chord(t.from, t.to)));
+        }
+        if let Some((p, p_tight)) = prev {
+            let pair = need(chord(p.from, t.to));
+            if (tight || p_tight) && t.at - p.at < v * pair {
+                w = w.max(pair);
+            }
+        }
+        prev = Some((t, tight));
+    }
+    w
+}
+
+/// The narrowest half window (frames) a decision takes: what keeps within `limit` the
+/// largest step of the plan's velocity that `crate::step_ramps` does not take for one
+/// (`StepRamps::UNSEEN` position units a cycle, 4 mm/s at 10 kHz) and so does not ramp
+/// over a window of its own. With no floor the logo at 500 mm/s^2 reached 610 mm/s^2
+/// on X and Y, and the fine features 1 045 on Y (a 1.3 mm/s kink over a few frames).
+fn min_half<R: Real, const N: usize>(m: &Machine<R, N>, limit: f32) -> u32 {
+    let dt = m.dt().to_f32();
+    let step = crate::step_ramps::StepRamps::UNSEEN as f32 * 1.0e-4 / dt;
+    let frames = libm::ceilf(step / limit / dt);
+    (frames as u32 / 2).min(m.ramp_cycles / 2)
+}
+
+/// The shortest window (s) over which the head's mean takes a first-order change of `v`
+/// (mm/s, time constant `tau`, from its kink) within `limit`, or a little longer: any
+/// chord of the change over `w` is at most `v (1 - exp(-w / tau)) / w`, so `x = w / tau`
+/// is the root of `f(x) = 1 - exp(-x) - r x`, `r = limit tau / v`. `f` is concave, and
+/// `1 - exp(-x) <= 2 x / (2 + x)` puts `2 (1 / r - 1)` at or past the root: Newton's
+/// steps from there stay at or past it.
+fn window(v: f32, tau: f32, limit: f32) -> f32 {
+    let r = limit * tau / v;
+    if r.is_nan() || r >= 1.0 {
+        return 0.0;
+    }
+    let mut x = 2.0 * (1.0 / r - 1.0);
+    for _ in 0..2 {
+        let e = libm::expf(-x);
+        let (f, df) = (1.0 - e - r * x, e - r);
+        if !(f < 0.0 && df < 0.0) {
+            break;
+        }
+        x -= f / df;
+    }
+    x * tau
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The window is the f64 reference's (`config::ramp_window`, bisection) or a little
+    /// longer, never shorter: within the limit, and within 1 % of the shortest.
+    #[test]
+    fn windows_hold_the_limit_and_are_nearly_the_shortest() {
+        for (v, tau, a) in [
+            (10.0f32, 0.02f32, 475.0f32),
+            (22.48, 0.03, 475.0),
+            (16.3, 0.03, 475.0),
+            (22.48, 0.02, 950.0),
+            (5.0, 0.001, 200.0),
+        ] {
+            let w = window(v, tau, a);
+            let reference = crate::config::ramp_window(v as f64, v as f64, tau as f64, a as f64);
+            assert!(
+                w as f64 >= reference * (1.0 - 1e-4) && (w as f64) <= reference * 1.01 + 1e-6,
+                "{v} {tau} {a}: {w} against {reference}"
+            );
+            assert!(
+                v * (1.0 - libm::expf(-w / tau)) <= a * w * 1.0001,
+                "{v} {tau} {a}"
+            );
+        }
+        // Within the limit already, or nothing to change: no window.
+        assert_eq!(window(10.0, 0.03, 475.0), 0.0);
+        assert_eq!(window(0.0, 0.03, 475.0), 0.0);
+    }
+
+    /// A fillet tighter than the limit allows at the speed needs the window that takes
+    /// the velocity's whole change across it within the limit; a looser one none; two
+    /// in a row closer than their pair's window need the pair's; near the flow's change
+    /// a turn of under 60 degrees still needs the speed's own change.
+    #[test]
+    fn turns_need_their_velocity_change_over_the_window() {
+        let t = |at: f32, radius: f32, from: [f32; 2], to: [f32; 2]| Turn {
+            at,
+            radius,
+            from,
+            to,
+        };
+        let (x, y, nx) = ([1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]);
+        let r2 = core::f32::consts::SQRT_2;
+        // 10 mm/s on 0.1 mm: 1 000 mm/s^2 against 475.
+        let w = turn_window(10.0, 0.0, 475.0, [t(5.0, 0.1, x, y)].into_iter());
+        assert!((w - 10.0 * r2 / 475.0).abs() < 1e-6, "{w}");
+        // 0.4 mm: 250 mm/s^2, within.
+        assert_eq!(
+            turn_window(10.0, 0.0, 475.0, [t(5.0, 0.4, x, y)].into_iter()),
+            0.0
+        );
+        // A U-turn of two tight fillets 0.1 mm apart: the pair's reversal, 2 v.
+        let u = [t(5.0, 0.05, x, y), t(5.1, 0.05, y, nx)];
+        let w = turn_window(10.0, 0.0, 475.0, u.into_iter());
+        assert!((w - 20.0 / 475.0).abs() < 1e-6, "{w}");
+        // The same fillets 5 mm apart: each on its own.
+        let u = [t(5.0, 0.05, x, y), t(10.0, 0.05, y, nx)];
+        let w = turn_window(10.0, 0.0, 475.0, u.into_iter());
+        assert!((w - 10.0 * r2 / 475.0).abs() < 1e-6, "{w}");
+        // A tight 30 degree turn within the flow's change: at least v / limit.
+        let d = [0.866_025_4, 0.5];
+        let w = turn_window(10.0, 6.0, 475.0, [t(5.0, 0.01, x, d)].into_iter());
+        assert!((w - 10.0 / 475.0).abs() < 1e-6, "{w}");
+    }
+}
