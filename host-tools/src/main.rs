@@ -15,8 +15,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Slice images or multi-material 3D models into a job (.dlp), G-code and previews.
-    Slice(cmd::slice::Args),
+    /// Slice images, multi-material 3D models or another slicer's G-code into a job (.dlp),
+    /// G-code and previews.
+    Slice(Box<cmd::slice::Args>),
     /// Run a job through the firmware's executor in virtual time; trace, heatmap, report.
     Simulate(cmd::simulate::Args),
     /// Print a complete, commented example machine config.
@@ -52,7 +53,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Slice(a) => cmd::slice::run(a),
+        Command::Slice(a) => cmd::slice::run(*a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Config(a) => cmd::config::run(a),
         Command::Demo(a) => cmd::demo::run(a),

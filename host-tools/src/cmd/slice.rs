@@ -286,11 +286,6 @@ fn default_out(design: &Path) -> PathBuf {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let req = a.request();
     let opts = req.options().map_err(flagged)?;
-    let host = gcode_dialect::HostText {
-        progress: true,
-        start: host_gcode("--gcode-start", a.gcode_start.as_deref())?,
-        end: host_gcode("--gcode-end", a.gcode_end.as_deref())?,
-    };
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
     if a.designs.iter().any(|d| gcode_in::is_gcode(d)) {
@@ -351,6 +346,11 @@ fn finish(
     machine: dollop::Machine<f64, 4>,
     mut sliced: slicer::Sliced,
 ) -> anyhow::Result<()> {
+    let host = gcode_dialect::HostText {
+        progress: true,
+        start: host_gcode("--gcode-start", a.gcode_start.as_deref())?,
+        end: host_gcode("--gcode-end", a.gcode_end.as_deref())?,
+    };
     if a.markers || a.calibration_pattern {
         sliced = slicer::with_markers(sliced, &config, &machine)?;
     }

@@ -5,22 +5,17 @@
 //! `--auth` everything is open, which `start` allows on a loopback address only. This file
 //! stops at checking: no users, no roles, no expiry (a restart signs everyone out).
 
-use super::error::ApiError;
 use super::lock::lock;
-use super::state::AppState;
-use axum::extract::{Request, State};
-use axum::http::{header, HeaderMap, StatusCode};
-use axum::middleware::Next;
-use axum::response::{Html, IntoResponse, Redirect, Response};
+use axum::http::{header, HeaderMap};
 use rand::RngExt;
 use std::collections::VecDeque;
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 /// Sessions kept (browsers signed in); the oldest is signed out past this.
 pub const MAX_SESSIONS: usize = 64;
 
 /// The session cookie's name.
-const COOKIE: &str = "dollop_session";
+pub const COOKIE: &str = "dollop_session";
 
 /// The key and the sessions signed in with it.
 pub struct Auth {
@@ -78,75 +73,6 @@ impl Auth {
             s.pop_front();
         }
         Some(token)
-    }
-}
-
-/// The middleware: lets the request through when `--auth` is off or it is admitted (and
-/// always to the sign-in form); otherwise sends a browser's page load to the form and
-/// answers anything else 401.
-pub async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
-    let Some(auth) = st.auth.as_ref() else {
-        return next.run(req).await;
-    };
-    let open = matches!(req.uri().path(), "/login" | "/favicon.svg" | "/favicon.ico");
-    if open || auth.admits(req.headers()) {
-        return next.run(req).await;
-    }
-    let wants_page = req
-        .headers()
-        .get(header::ACCEPT)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|a| a.contains("text/html"));
-    if wants_page && req.uri().path() == "/" {
-        return Redirect::to("/login").into_response();
-    }
-    ApiError::Unauthorized(
-        "this dashboard needs its key (dollop serve --auth): sign in at /login, or send Authorization: Bearer KEY".into(),
-    )
-    .into_response()
-}
-
-/// The sign-in form.
-fn form(refused: bool) -> Html<String> {
-    Html(format!(
-        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>dollop: sign in</title><link rel=\"icon\" href=\"/favicon.svg\" type=\"image/svg+xml\"></head>\
-<body style=\"font:16px system-ui,sans-serif;max-width:24em;margin:3em auto;padding:0 1em\"><h1>dollop</h1>\
-<form method=\"post\" action=\"/login\"><p><label>Key or password (as given to <code>dollop serve --auth</code>)<br><input id=\"key\" name=\"key\" type=\"password\" autofocus style=\"width:100%;font:inherit\"></label></p>\
-<p><button id=\"sign-in\" style=\"font:inherit\">Sign in</button></p>{}</form></body></html>",
-        if refused {
-            "<p id=\"refused\" style=\"color:#8a1c12\">That is not this dashboard's key.</p>"
-        } else {
-            ""
-        }
-    ))
-}
-
-/// `GET /login`.
-pub async fn login_page() -> Html<String> {
-    form(false)
-}
-
-/// The form's field.
-#[derive(serde::Deserialize)]
-pub struct KeyForm {
-    key: String,
-}
-
-/// `POST /login`: a session cookie and on to the dashboard, or the form again (401).
-pub async fn login(State(st): State<Arc<AppState>>, f: axum::Form<KeyForm>) -> Response {
-    let Some(auth) = st.auth.as_ref() else {
-        return Redirect::to("/").into_response();
-    };
-    match auth.sign_in(&f.key) {
-        Some(token) => (
-            [(
-                header::SET_COOKIE,
-                format!("{COOKIE}={token}; HttpOnly; SameSite=Strict; Path=/"),
-            )],
-            Redirect::to("/"),
-        )
-            .into_response(),
-        None => (StatusCode::UNAUTHORIZED, form(true)).into_response(),
     }
 }
 

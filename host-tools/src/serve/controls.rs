@@ -4,7 +4,7 @@
 //! the page disables the button with the reason on hover. Abort is never refused here:
 //! it is the emergency stop, and on a board with nothing to stop it does no harm.
 
-use super::boards::View;
+use super::view::View;
 use dollop::wire::Mode;
 use dollop::RunState;
 use std::collections::BTreeMap;

@@ -4,7 +4,7 @@
 //! designs with the CLI's options into a job and its toolpath for the browser to draw.
 
 use super::error::{ApiError, ApiResult};
-use crate::slicer::{self, SliceError, SliceOption, SliceRequest, Sliced};
+use crate::slicer::{self, SliceError, SliceRequest, Sliced};
 use dollop::command::MoveKind;
 use dollop::config::Config;
 use dollop::Command;
@@ -431,33 +431,10 @@ impl SliceForm {
     }
 }
 
-/// The page's name for a request's option: its field's label (`index.html`, `opt-...`).
-pub fn field_name(o: SliceOption) -> &'static str {
-    match o {
-        SliceOption::Palette => "Palette",
-        SliceOption::Background => "Background",
-        SliceOption::BackgroundTolerance => "Background tolerance",
-        SliceOption::MinRun => "Shortest run, mm",
-        SliceOption::Origin => "Origin X,Y mm",
-        SliceOption::Layers => "Layers",
-        SliceOption::Connect => "Join rows within, mm",
-        SliceOption::Prime => "Priming bead, mm",
-        // The page writes no G-code.
-        SliceOption::GcodePorts => "G-code ports",
-    }
-}
-
-/// A slicer error as the page says it: a refused option by its field's label.
+/// A slicer error as the page says it: a refused option by its field's label (see
+/// `ApiError`'s `From<SliceError>`).
 pub fn slice_error(e: SliceError) -> ApiError {
-    match e {
-        // `Label: value problem`: the label ends in a unit, so the colon comes first.
-        SliceError::BadOption(o) => ApiError::bad(match &o.value {
-            Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
-            None => format!("{}: {}", field_name(o.option), o.problem),
-        }),
-        // The rest (travel limits among them) as `From` words them.
-        e => ApiError::from(e),
-    }
+    ApiError::from(e)
 }
 
 /// An uploaded design file: the name the user gave it and its bytes.

@@ -5,7 +5,7 @@
 //! outside reaches a panic: every failure becomes one of these.
 
 use crate::calibrate::error::CalError;
-use crate::slicer::SliceError;
+use crate::slicer::{SliceError, SliceOption};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
@@ -154,10 +154,30 @@ const SLICE_FIELDS: [(&str, &str, &str); 2] = [
     ("change --origin", "change Origin X,Y mm", "opt-origin"),
 ];
 
+/// The page's name for a request's option: its field's label (`index.html`, `opt-...`).
+pub fn field_name(o: SliceOption) -> &'static str {
+    match o {
+        SliceOption::Palette => "Palette",
+        SliceOption::Background => "Background",
+        SliceOption::BackgroundTolerance => "Background tolerance",
+        SliceOption::MinRun => "Shortest run, mm",
+        SliceOption::Origin => "Origin X,Y mm",
+        SliceOption::Layers => "Layers",
+        SliceOption::Connect => "Join rows within, mm",
+        SliceOption::Prime => "Priming bead, mm",
+        // The page writes no G-code.
+        SliceOption::GcodePorts => "G-code ports",
+    }
+}
+
 impl From<SliceError> for ApiError {
     fn from(e: SliceError) -> Self {
         match e {
-            SliceError::BadOption(_) => super::design::slice_error(e),
+            // `Label: value problem`: the label ends in a unit, so the colon comes first.
+            SliceError::BadOption(o) => ApiError::bad(match &o.value {
+                Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
+                None => format!("{}: {}", field_name(o.option), o.problem),
+            }),
             e @ (SliceError::TooLarge { .. } | SliceError::OutsideTravel { .. }) => {
                 let mut m = e.to_string();
                 let mut field = None;

@@ -13,6 +13,7 @@ pub mod clock;
 pub mod controls;
 pub mod design;
 pub mod error;
+pub mod gate;
 pub mod history;
 pub mod jobs;
 pub mod lock;
@@ -21,6 +22,7 @@ pub mod samples;
 pub mod simlink;
 pub mod simulate;
 pub mod state;
+pub mod view;
 
 use anyhow::Context;
 use std::net::SocketAddr;

@@ -35,7 +35,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/favicon.ico", get(assets::favicon))
         .route(
             "/login",
-            get(super::auth::login_page).post(super::auth::login),
+            get(super::gate::login_page).post(super::gate::login),
         )
         .route("/api/info", get(info))
         .route("/api/configs/{i}", get(config_get))
@@ -57,7 +57,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .layer(DefaultBodyLimit::max(super::MAX_UPLOAD))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
-            super::auth::guard,
+            super::gate::guard,
         ))
         .with_state(state)
 }
