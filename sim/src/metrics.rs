@@ -388,15 +388,33 @@ impl Meter {
                 .map_or(trace.s + trace.extra, |r| r.0);
             self.metrics.bead_starts.push((bi, right - s0));
         }
+        // A bead that starts in another material than the design's (its change fell
+        // across the travel before it, the channel still holding the last bead's paste)
+        // has its boundary at its start: measured as one, the rest compared as usual.
+        let mut landed = trace.landed.clone();
+        let mut start_boundary = None;
+        if let (Some(&(s0, m0)), Some(k)) =
+            (landed.first(), landed.iter().position(|r| r.1 == first))
+        {
+            if m0 != first && landed[k].0 - s0 >= SLIVER_MM {
+                start_boundary = Some(Boundary {
+                    bead: bi,
+                    point: design.runs[0].0,
+                    material: first,
+                    s_design: s0,
+                    s_landed: landed[k].0,
+                });
+                landed.drain(..k);
+            }
+        }
         // Merge slivers.
         let mut runs: Vec<(f64, u8)> = Vec::new();
-        for (k, &(s, m)) in trace.landed.iter().enumerate() {
-            let next_s = trace
-                .landed
+        for (k, &(s, m)) in landed.iter().enumerate() {
+            let next_s = landed
                 .get(k + 1)
                 .map(|r| r.0)
                 .unwrap_or(trace.s + trace.extra);
-            if next_s - s < SLIVER_MM && (k > 0 || trace.landed.len() > 1) {
+            if next_s - s < SLIVER_MM && (k > 0 || landed.len() > 1) {
                 self.metrics.slivers += 1;
                 continue;
             }
@@ -453,6 +471,7 @@ impl Meter {
             ));
             return;
         }
+        self.metrics.boundaries.extend(start_boundary);
         let mut from = 0;
         for (k, &(point, m)) in design.runs.iter().enumerate().skip(1) {
             let (s_design, idx) = closest_s(&trace.samples, point, from);
