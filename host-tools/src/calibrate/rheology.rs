@@ -356,6 +356,12 @@ pub fn calibrate_table(table: &Table, options: Options) -> Result<Calibration, C
                 let wanted = f.values()[0];
                 (yield_at_zero(kind, &f, &x, &y, options), Some(wanted))
             }
+            // Held or not, a yield stress (or plateau) below 0 means nothing: its interval
+            // stops at the bound.
+            Some(mut f) if which == Which::HerschelBulkley => {
+                f.estimates[0].lo = f.estimates[0].lo.max(0.0);
+                (Some(f), None)
+            }
             other => (other, None),
         };
         match best {
