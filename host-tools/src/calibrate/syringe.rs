@@ -236,8 +236,7 @@ pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
         // Both figures the user can find in the config, beside the one the core derives.
         let why = format!(
             "max_step_rate_hz {} less one step per control cycle at rate_hz {}",
-            cfg.motion.max_step_rate_hz,
-            cfg.control.rate_hz
+            cfg.motion.max_step_rate_hz, cfg.control.rate_hz
         );
         verdicts.push(if need <= max {
             format!(
