@@ -4,29 +4,9 @@
 use dollop::config::Config;
 use dollop_host::fixtures::EXAMPLE_CONFIG as EXAMPLE;
 use dollop_host::slicer::job_file::read_job;
-use std::path::Path;
-use std::process::Command;
+mod cli_common;
 
-fn dollop(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_dollop"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
-}
-
-fn manifest(p: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join(p)
-        .to_str()
-        .unwrap()
-        .to_string()
-}
+use cli_common::{dollop, manifest};
 
 #[test]
 fn slice_writes_job_gcode_and_preview() {

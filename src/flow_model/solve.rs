@@ -84,19 +84,7 @@ pub fn flow_within<R: Real>(
     tol: R,
     max_iterations: u32,
 ) -> R {
-    let mut yield_sum = R::ZERO;
-    let mut lin = R::ZERO;
-    let mut nonlinear = false;
-    for (law, &v) in laws.iter().zip(vin) {
-        if v > R::ZERO {
-            yield_sum += v * law.b;
-            if law.linear {
-                lin += v * law.a;
-            } else {
-                nonlinear = true;
-            }
-        }
-    }
+    let (yield_sum, lin, nonlinear) = content_terms(laws, vin);
     let target = p - yield_sum;
     if target <= R::ZERO {
         return R::ZERO;
@@ -190,11 +178,11 @@ fn drops<R: Real>(laws: &[FlowLaw<R>], vin: &[R], q: R) -> Drops<R> {
     d
 }
 
-/// A start for `flow_step` with nothing to warm-start from: the content's own closed
-/// forms at pressure `p` (see `cold_guess`); zero where nothing flows (pressure within
-/// the yield terms, no content, or a flow below the float's range). The look-ahead works
-/// this out as a unit of its own, so that no control cycle carries it and a Newton step.
-pub fn cold_start<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R) -> R {
+/// What the channel's content adds up to: the yield terms' sum, the linear (Newtonian)
+/// resistances' sum, and whether any non-linear paste is in it. Inlined: it sits on the
+/// per-cycle path of `flow_within`.
+#[inline(always)]
+fn content_terms<R: Real>(laws: &[FlowLaw<R>], vin: &[R]) -> (R, R, bool) {
     let mut yield_sum = R::ZERO;
     let mut lin = R::ZERO;
     let mut nonlinear = false;
@@ -208,6 +196,15 @@ pub fn cold_start<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R) -> R {
             }
         }
     }
+    (yield_sum, lin, nonlinear)
+}
+
+/// A start for `flow_step` with nothing to warm-start from: the content's own closed
+/// forms at pressure `p` (see `cold_guess`); zero where nothing flows (pressure within
+/// the yield terms, no content, or a flow below the float's range). The look-ahead works
+/// this out as a unit of its own, so that no control cycle carries it and a Newton step.
+pub fn cold_start<R: Real>(laws: &[FlowLaw<R>], vin: &[R], p: R) -> R {
+    let (yield_sum, lin, nonlinear) = content_terms(laws, vin);
     let target = p - yield_sum;
     if target <= R::ZERO {
         R::ZERO

@@ -151,19 +151,8 @@ impl Emitter {
         }
         self.stats.print_mm += (dx as f64).hypot(dy as f64) * 1e-3;
         self.at = Some([t[0], t[1], f[2]]);
-        if let Some(Command::Print {
-            dx: pdx,
-            dy: pdy,
-            material: pm,
-        }) = self.cmds.last_mut()
-        {
-            let cross = *pdx as i64 * dy as i64 - *pdy as i64 * dx as i64;
-            let dot = *pdx as i64 * dx as i64 + *pdy as i64 * dy as i64;
-            if *pm == material && cross == 0 && dot > 0 {
-                *pdx += dx;
-                *pdy += dy;
-                return Ok(());
-            }
+        if crate::slicer::toolpath::extend_last_print(&mut self.cmds, dx, dy, material) {
+            return Ok(());
         }
         if self.stats.print_segments >= self.limits.max_segments {
             return Err(GcodeInError::TooMany {

@@ -91,21 +91,8 @@ impl Emitter {
         self.at[0] = to[0];
         self.at[1] = to[1];
         self.stats.print_mm += ((dx as f64).powi(2) + (dy as f64).powi(2)).sqrt() * 1e-3;
-        // Merge with the previous segment when it continues it: same material, same line,
-        // same direction (exact in integers).
-        if let Some(Command::Print {
-            dx: pdx,
-            dy: pdy,
-            material: pm,
-        }) = self.cmds.last_mut()
-        {
-            let cross = *pdx as i64 * dy as i64 - *pdy as i64 * dx as i64;
-            let dot = *pdx as i64 * dx as i64 + *pdy as i64 * dy as i64;
-            if *pm == material && cross == 0 && dot > 0 {
-                *pdx += dx;
-                *pdy += dy;
-                return;
-            }
+        if extend_last_print(&mut self.cmds, dx, dy, material) {
+            return;
         }
         self.cmds.push(Command::Print { dx, dy, material });
         self.stats.print_segments += 1;
@@ -494,6 +481,27 @@ fn check_travel(tp: &Toolpath, machine: &Machine<f64, 4>, what: &str) -> Result<
         }
     }
     Ok(())
+}
+
+/// Lengthens the last command when it is a print segment that `(dx, dy)` in `material`
+/// continues: same material, same line, same direction (exact in integers). True when it
+/// did, so the caller pushes nothing.
+pub fn extend_last_print(cmds: &mut [Command], dx: i32, dy: i32, material: u8) -> bool {
+    if let Some(Command::Print {
+        dx: pdx,
+        dy: pdy,
+        material: pm,
+    }) = cmds.last_mut()
+    {
+        let cross = *pdx as i64 * dy as i64 - *pdy as i64 * dx as i64;
+        let dot = *pdx as i64 * dx as i64 + *pdy as i64 * dy as i64;
+        if *pm == material && cross == 0 && dot > 0 {
+            *pdx += dx;
+            *pdy += dy;
+            return true;
+        }
+    }
+    false
 }
 
 #[cfg(test)]
