@@ -479,8 +479,14 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     if uploads.is_empty() {
         return Err(ApiError::bad(
-            "choose a design: an image, one STL per material, or a 3MF",
+            "choose a design: an image, one STL per material, a 3MF, or a slicer's G-code",
         ));
+    }
+    if uploads
+        .iter()
+        .any(|u| crate::gcode_in::is_gcode(Path::new(&u.name)))
+    {
+        return import_gcode(uploads, config, form);
     }
     let req = form.request()?;
     let opts = req.options().map_err(slice_error)?;
@@ -510,6 +516,34 @@ pub fn slice(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult
     }
     sliced.name = sliced.name.replace(&ours, "");
     Ok(sliced)
+}
+
+/// Another slicer's G-code, imported as `dollop slice FILE.gcode` does (tools in inlet
+/// order, the form's priming bead); the import summary goes to the job's name line.
+fn import_gcode(uploads: &[Upload], config: &Config, form: &SliceForm) -> ApiResult<Sliced> {
+    use crate::gcode_in::{self, ImportOptions};
+    let [u] = uploads else {
+        return Err(ApiError::bad(format!(
+            "a G-code file is imported alone ({} files chosen)",
+            uploads.len()
+        )));
+    };
+    let opts = ImportOptions {
+        prime_mm: form.request()?.prime_mm,
+        ..ImportOptions::default()
+    };
+    gcode_in::check_size(u.bytes.len() as u64, opts.max_bytes)
+        .map_err(|e| ApiError::bad(format!("{}: {e}", u.name)))?;
+    let text = std::str::from_utf8(&u.bytes)
+        .map_err(|_| ApiError::bad(format!("{}: not a text file, so not G-code", u.name)))?;
+    let machine = slicer::validate(Path::new("config"), config).map_err(slice_error)?;
+    let mut imported = gcode_in::import_text(text, &u.name, &opts, config, &machine)
+        .map_err(|e| ApiError::bad(format!("{}: {e}", u.name)))?;
+    if form.request()?.markers {
+        imported.sliced =
+            slicer::with_markers(imported.sliced, config, &machine).map_err(slice_error)?;
+    }
+    Ok(imported.sliced)
 }
 
 /// The calibration pattern of `dollop slice --calibration-pattern` for this config (every
@@ -757,6 +791,43 @@ mod tests {
 
     fn seed() -> &'static str {
         BUNDLED[0].1
+    }
+
+    #[test]
+    fn a_slicers_gcode_is_imported_from_the_design_page() {
+        let config: Config = toml::from_str(seed()).unwrap();
+        let gcode = include_str!("../../tests/data/gcode-in/square-abs-e.gcode");
+        let up = |name: &str, bytes: &[u8]| Upload {
+            name: name.into(),
+            bytes: bytes.to_vec(),
+        };
+        let form = SliceForm::default();
+        let s = slice(&[up("square.gcode", gcode.as_bytes())], &config, &form).unwrap();
+        let materials: std::collections::BTreeSet<u8> = s
+            .commands
+            .iter()
+            .filter_map(|c| match c {
+                Command::Print { material, .. } => Some(*material),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(materials.len(), 2, "{:?}", s.commands);
+        // Bad uploads: typed, worded for the page, nothing sliced.
+        let e = slice(&[up("bin.gcode", &[0xff, 0xfe, 0x00])], &config, &form).unwrap_err();
+        assert!(e.message().contains("not a text file"), "{}", e.message());
+        let two = [
+            up("a.gcode", gcode.as_bytes()),
+            up("b.gcode", gcode.as_bytes()),
+        ];
+        let e = slice(&two, &config, &form).unwrap_err();
+        assert!(e.message().contains("imported alone"), "{}", e.message());
+        let e = slice(
+            &[up("t.gcode", b"G1 X10 Y10 Z0.6\nT5\nG1 X20 E1\n")],
+            &config,
+            &form,
+        )
+        .unwrap_err();
+        assert!(e.message().contains("t.gcode"), "{}", e.message());
     }
 
     fn edit(path: &str, raw: &str) -> Vec<Field> {
