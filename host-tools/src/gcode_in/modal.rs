@@ -265,11 +265,8 @@ impl Modal {
     }
 
     /// A coordinate word as machine mm, range-checked.
-    fn coord(&self, w: &Words, axis: usize, n: usize) -> Result<Option<f64>, GcodeInError> {
-        let letter = ['X', 'Y', 'Z'][axis];
-        let Some(v) = w.get(letter)? else {
-            return Ok(None);
-        };
+    /// A coordinate word's value in mm (G20/G21), refused beyond [`MAX_COORD_MM`].
+    fn in_mm(&self, v: f64, letter: char, n: usize) -> Result<f64, GcodeInError> {
         let v = v * self.unit;
         if v.abs() > MAX_COORD_MM {
             return Err(GcodeInError::OutOfRange {
@@ -279,6 +276,15 @@ impl Modal {
                 limit: MAX_COORD_MM,
             });
         }
+        Ok(v)
+    }
+
+    fn coord(&self, w: &Words, axis: usize, n: usize) -> Result<Option<f64>, GcodeInError> {
+        let letter = ['X', 'Y', 'Z'][axis];
+        let Some(v) = w.get(letter)? else {
+            return Ok(None);
+        };
+        let v = self.in_mm(v, letter, n)?;
         Ok(Some(if self.abs_xyz {
             v + self.offset[axis]
         } else {
@@ -447,15 +453,7 @@ impl Modal {
         for (a, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
             let v = if any { w.get(letter)? } else { Some(0.0) };
             if let Some(v) = v {
-                let v = v * self.unit;
-                if v.abs() > MAX_COORD_MM {
-                    return Err(GcodeInError::OutOfRange {
-                        line: n,
-                        axis: letter,
-                        value: v,
-                        limit: MAX_COORD_MM,
-                    });
-                }
+                let v = self.in_mm(v, letter, n)?;
                 self.offset[a] = self.pos[a] - v;
                 self.known[a] = true;
             }
