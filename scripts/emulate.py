@@ -16,7 +16,7 @@ Layout, so later work can extend one part without touching the others:
   scenarios   boot / run / watchdog / fault runs, producing measurements
   checks      one function per assertion, reading only the log and the measurements
 
-How QEMU 7.2 forces the details (see the README section "Running the firmware in an
+How QEMU 7.2 forces the details (see docs/emulator.md, "Running the firmware in an
 emulator"):
   * No CCM: the image's stack (0x1000_0000..0x1001_0000) does not exist; at reset the
     harness moves SP to 0x2003_0000, the 64 KiB of SRAM above the chip's 128 KiB (no

@@ -142,11 +142,13 @@ pub enum GcodeInError {
     },
 }
 
-/// Why importing a G-code file failed: reading it, or its content.
+/// Why importing a G-code file failed: reading it, or its content. The message names the
+/// file and leaves the cause to the error's source, so a chain printed with `{:#}` (as the
+/// command line does) says the cause once.
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
     /// The file could not be read.
-    #[error("{}: cannot read: {source}", .path.display())]
+    #[error("{}: cannot read", .path.display())]
     Read {
         /// The file.
         path: std::path::PathBuf,
@@ -154,7 +156,7 @@ pub enum ImportError {
         source: std::io::Error,
     },
     /// The content was refused.
-    #[error("{}: {source}", .path.display())]
+    #[error("{}", .path.display())]
     Gcode {
         /// The file.
         path: std::path::PathBuf,
