@@ -213,7 +213,9 @@ fn every_relative_link_resolves_inside_the_repository() {
                 let Some(end) = after.find(')') else { break };
                 let target = &after[..end];
                 rest = &after[end..];
-                if target.contains("://") || target.starts_with('#') || target.starts_with("mailto:")
+                if target.contains("://")
+                    || target.starts_with('#')
+                    || target.starts_with("mailto:")
                 {
                     continue;
                 }

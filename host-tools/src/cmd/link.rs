@@ -125,7 +125,22 @@ type Board = Client<SerialLink>;
 fn connect(p: &PortArgs) -> anyhow::Result<Board> {
     let link = SerialLink::open(p.port.as_deref())?;
     let path = link.path().to_string();
-    let mut c = Client::open(link, Options::default());
+    let opts = Options::default();
+    let mut c = Client::open(link, opts);
+    // Within a second and then every few, say what the command waits for.
+    let waiting_on = path.clone();
+    let rto_ms = opts.rto.as_millis() as u64;
+    c.on_silence(move |s| {
+        let waited_ms = u64::from(s.tries) * rto_ms;
+        if s.tries == 1 || waited_ms % 3000 < rto_ms {
+            eprintln!(
+                "waiting for the board on {waiting_on}: no answer yet after {:.1} s (hello {} of {}); Ctrl-C to stop",
+                waited_ms as f64 / 1000.0,
+                s.tries,
+                s.of
+            );
+        }
+    });
     let info = c
         .connect()
         .with_context(|| format!("talking to the board on {path}"))?;

@@ -78,8 +78,21 @@ pub struct Client<T: Transport> {
     inpos: usize,
     info: Option<HelloInfo>,
     rng: rand::rngs::StdRng,
+    /// Hellos unanswered since the last answer (what `on_silence` is told).
+    hellos_unanswered: u32,
+    /// Told after each hello that went unanswered (see `on_silence`).
+    silence: Option<Box<dyn FnMut(Silence) + Send>>,
     /// What happened so far.
     pub stats: ClientStats,
+}
+
+/// How long a board has been silent while the client says hello (`Client::on_silence`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Silence {
+    /// Hellos sent so far in this connect, all unanswered.
+    pub tries: u32,
+    /// How many the connect sends before it gives up.
+    pub of: u32,
 }
 
 impl<T: Transport> Client<T> {
@@ -96,8 +109,16 @@ impl<T: Transport> Client<T> {
             inpos: 0,
             info: None,
             rng: rand::rngs::StdRng::seed_from_u64(seed),
+            hellos_unanswered: 0,
+            silence: None,
             stats: ClientStats::default(),
         }
+    }
+
+    /// Calls `f` after each hello the board leaves unanswered (every `rto`), so a command
+    /// can say what it is waiting for instead of staying silent until the connect gives up.
+    pub fn on_silence(&mut self, f: impl FnMut(Silence) + Send + 'static) {
+        self.silence = Some(Box::new(f));
     }
 
     /// A client with a session-id seed from the clock.
@@ -212,11 +233,19 @@ impl<T: Transport> Client<T> {
                     }
                     self.seq = seq.wrapping_add(1);
                     self.credit = h.credit;
+                    self.hellos_unanswered = 0;
                     self.info = Some(info.clone());
                     return Ok(info);
                 }
             }
             self.stats.retransmits += 1;
+            self.hellos_unanswered += 1;
+            if let Some(f) = self.silence.as_mut() {
+                f(Silence {
+                    tries: self.hellos_unanswered,
+                    of: self.opts.tries * (self.opts.reconnects + 1),
+                });
+            }
         }
         Err(LinkError::NoAnswer {
             tries: self.opts.tries,
@@ -529,5 +558,60 @@ impl<T: Transport> Client<T> {
             }
             self.t.sleep(self.opts.poll / 4);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::{Arc, Mutex};
+
+    /// A port with nothing behind it: sends vanish, nothing arrives, time is virtual.
+    struct Silent {
+        now: Duration,
+    }
+
+    impl Transport for Silent {
+        fn send(&mut self, _: &[u8]) -> Result<(), LinkError> {
+            Ok(())
+        }
+        fn recv(&mut self, _: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+            self.now += timeout;
+            Ok(0)
+        }
+        fn now(&self) -> Duration {
+            self.now
+        }
+        fn sleep(&mut self, d: Duration) {
+            self.now += d;
+        }
+        fn reconnect(&mut self) -> Result<(), LinkError> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_silent_board_is_reported_at_every_unanswered_hello() {
+        let opts = Options {
+            tries: 3,
+            reconnects: 1,
+            ..Options::default()
+        };
+        let mut c = Client::new(
+            Silent {
+                now: Duration::ZERO,
+            },
+            opts,
+            7,
+        );
+        let told = Arc::new(Mutex::new(Vec::new()));
+        let log = told.clone();
+        c.on_silence(move |s| log.lock().unwrap().push((s.tries, s.of)));
+        let r = c.connect();
+        assert!(matches!(r, Err(LinkError::NoAnswer { tries: 3 })), "{r:?}");
+        let told = told.lock().unwrap();
+        // Told after the first rto already, then after each hello, counting across the
+        // reconnect, out of every hello the connect will send.
+        assert_eq!(*told, vec![(1, 6), (2, 6), (3, 6), (4, 6), (5, 6), (6, 6)]);
     }
 }
