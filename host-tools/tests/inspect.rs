@@ -494,6 +494,25 @@ fn markers_against_outline(name: &str, truth: Truth, seed: u64) {
         };
         assert_eq!(ins.registration, want, "{name}");
         assert!(ins.plan.markers.is_some());
+        // The picture shows the whole print, markers and all, inside the frame.
+        let (shown_lo, shown_hi) = inspect::picture::shown_mm(&ins);
+        let (lo, hi) = ins.plan.extent();
+        let f = ins.frame;
+        for k in 0..2 {
+            assert!(
+                shown_lo[k] < lo[k] && shown_hi[k] > hi[k],
+                "{name}: picture {shown_lo:?}..{shown_hi:?} cuts the print {lo:?}..{hi:?}"
+            );
+            assert!(
+                f.lo[k] - f.margin_mm <= shown_lo[k] + 1e-9
+                    && shown_hi[k] <= f.hi[k] + f.margin_mm + 1e-9,
+                "{name}: the frame does not hold what the picture shows"
+            );
+            assert!(
+                lo[k] < ins.plan.lo[k] || hi[k] > ins.plan.hi[k],
+                "{name}: markers beyond the design"
+            );
+        }
         let errs = offset_errors(&ins, &p.plant);
         let worst = errs.iter().copied().fold(0.0, f64::max);
         let pe = (ins.pattern_error - p.pattern_error).abs();

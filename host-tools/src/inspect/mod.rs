@@ -351,6 +351,23 @@ pub fn inspect(
     inspect_photo(path, photo, commands, start_um, config, o)
 }
 
+/// The frame's margin around the design, mm: two pitches of plate, and wide enough that
+/// the picture shows the whole print with its corner markers. What the markers add is a
+/// whole number of pixels, so the design's own pixels sample the photo at the same points
+/// with or without them.
+fn frame_margin(plan: &design::Plan, px_per_mm: f64) -> f64 {
+    let (lo, hi) = plan.extent();
+    let reach = [
+        plan.lo[0] - lo[0],
+        plan.lo[1] - lo[1],
+        hi[0] - plan.hi[0],
+        hi[1] - plan.hi[1],
+    ]
+    .into_iter()
+    .fold(0.0f64, f64::max);
+    2.0 * plan.pitch + (reach * px_per_mm).ceil() / px_per_mm
+}
+
 /// The resolutions, px per mm, the rectified picture is drawn at: below 2 a bead is a
 /// pixel or two, above 200 a print's frame outgrows memory.
 pub const PX_PER_MM: std::ops::RangeInclusive<f64> = 2.0..=200.0;
@@ -388,7 +405,7 @@ pub fn inspect_photo(
         lo: plan.lo,
         hi: plan.hi,
         px_per_mm: o.px_per_mm,
-        margin_mm: 2.0 * pitch,
+        margin_mm: frame_margin(&plan, o.px_per_mm),
     };
     let (fw, fh) = frame.size();
     if u64::from(fw) * u64::from(fh) > 100_000_000 {

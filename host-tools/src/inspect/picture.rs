@@ -63,6 +63,15 @@ pub fn draw(i: &Inspection) -> RgbImage {
     img
 }
 
+/// What the picture shows, mm (lower-left, upper-right): the whole print, design and corner
+/// markers, with two pitches of plate around it. The frame's margin is as wide on every
+/// side as the farthest marker needs, so the picture crops to this.
+pub fn shown_mm(i: &Inspection) -> ([f64; 2], [f64; 2]) {
+    let (lo, hi) = i.plan.extent();
+    let pad = 2.0 * i.plan.pitch;
+    ([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad])
+}
+
 /// Smallest width of the framed picture's plate, pixels: a photo rectified at the
 /// measuring resolution can be a few hundred pixels, too small to read the marks.
 pub const MIN_PLATE_PX: u32 = 1000;
@@ -70,8 +79,16 @@ pub const MIN_PLATE_PX: u32 = 1000;
 /// The picture for a person: the inspection drawn over the rectified photo, enlarged to at
 /// least [`MIN_PLATE_PX`] wide, on mm axes with a key to its marks.
 pub fn figure(i: &Inspection) -> Result<RgbImage, String> {
-    let img = draw(i);
     let f = &i.frame;
+    let (lo, hi) = shown_mm(i);
+    let full = draw(i);
+    let a = f.to_px([lo[0], hi[1]]);
+    let z = f.to_px([hi[0], lo[1]]);
+    let x0 = (a[0].floor().max(0.0) as u32).min(full.width().saturating_sub(1));
+    let y0 = (a[1].floor().max(0.0) as u32).min(full.height().saturating_sub(1));
+    let x1 = (z[0].ceil().max(0.0) as u32).clamp(x0 + 1, full.width().max(x0 + 1));
+    let y1 = (z[1].ceil().max(0.0) as u32).clamp(y0 + 1, full.height().max(y0 + 1));
+    let img = image::imageops::crop_imm(&full, x0, y0, x1 - x0, y1 - y0).to_image();
     let (w, h) = (img.width().max(1), img.height().max(1));
     let img = if w < MIN_PLATE_PX {
         let k = MIN_PLATE_PX as f64 / w as f64;
@@ -87,12 +104,12 @@ pub fn figure(i: &Inspection) -> Result<RgbImage, String> {
     let plate = crate::figure::Plate {
         caption: String::new(),
         x_mm: (
-            f.lo[0] - f.margin_mm,
-            f.lo[0] - f.margin_mm + w as f64 / f.px_per_mm,
+            f.lo[0] - f.margin_mm + x0 as f64 / f.px_per_mm,
+            f.lo[0] - f.margin_mm + (x0 + w) as f64 / f.px_per_mm,
         ),
         y_mm: (
-            f.hi[1] + f.margin_mm - h as f64 / f.px_per_mm,
-            f.hi[1] + f.margin_mm,
+            f.hi[1] + f.margin_mm - (y0 + h) as f64 / f.px_per_mm,
+            f.hi[1] + f.margin_mm - y0 as f64 / f.px_per_mm,
         ),
         img,
     };
