@@ -694,7 +694,7 @@ async function drawBoard(id) {
   const b = lastBoards && lastBoards.boards[id];
   const card = document.querySelector(`.board[data-board="${id}"]`);
   if (!b || !card) return;
-  const canvas = card.querySelector("canvas");
+  const canvas = card.querySelector("canvas.board-canvas");
   const job = b.job ? await toolpathOf(b.job.job) : null;
   const tp = job && job.toolpath;
   const v = boardViews[id];
