@@ -273,6 +273,7 @@ async fn run() {
         no_usb: true,
         sim_boards: 2,
         data: Some(data.path().to_path_buf()),
+        camera: None,
     })
     .await
     .expect("server starts");
@@ -337,6 +338,7 @@ async fn signed_in(c: &Client, data: &Path) {
         no_usb: true,
         sim_boards: 1,
         data: Some(data.to_path_buf()),
+        camera: Some(snapshot_server().await),
     })
     .await
     .expect("the guarded server starts");
@@ -377,6 +379,14 @@ async fn signed_in(c: &Client, data: &Path) {
     click(c, "#nav-print").await;
     wait_for(c, "document.querySelectorAll('#history tr[data-outcome=\"finished\"]').length >= 2 && document.querySelectorAll('#history tr[data-outcome=\"aborted\"]').length >= 1", 20, "the history read back by a new server").await;
     shot(c, "history.png").await;
+    // The camera panel shows the snapshot the test serves (a bundled design as the photo).
+    wait_for(
+        c,
+        "!document.getElementById('camera-panel').hidden && document.getElementById('camera-img').naturalWidth > 50",
+        20,
+        "the camera's snapshot on the Print page",
+    )
+    .await;
     kept_files(c, data).await;
 }
 
@@ -439,6 +449,27 @@ async fn kept_files(c: &Client, data: &Path) {
     )
     .await;
     assert!(!data.join("files/uploaded-copy.dlp").exists());
+}
+
+/// A static snapshot endpoint, as a camera's: every request answers the same PNG. Its URL.
+async fn snapshot_server() -> String {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("snapshot listener");
+    let addr = l.local_addr().expect("address");
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        let png = serve::design::DESIGNS[0].1;
+        for mut s in l.incoming().flatten() {
+            let mut buf = [0u8; 2048];
+            let _ = s.read(&mut buf);
+            let head = format!(
+                "HTTP/1.1 200 OK\r\nContent-Type: image/png\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+                png.len()
+            );
+            let _ = s.write_all(head.as_bytes());
+            let _ = s.write_all(png);
+        }
+    });
+    format!("http://{addr}/snapshot.png")
 }
 
 /// A WebDriver session (a fresh browser), retried while chromedriver starts.

@@ -29,6 +29,7 @@ fn args(data: &std::path::Path, demo: bool) -> serve::Args {
         no_usb: true,
         sim_boards: 1,
         data: Some(data.to_path_buf()),
+        camera: None,
     }
 }
 

@@ -82,6 +82,10 @@ pub struct Args {
     /// user's data folder ($XDG_DATA_HOME, else ~/.local/share).
     #[arg(long, value_name = "DIR")]
     pub data: Option<PathBuf>,
+    /// A camera the Print page shows: an MJPEG stream or a snapshot URL (http:// or
+    /// https://; a snapshot is fetched again every two seconds by the browser).
+    #[arg(long, value_name = "URL")]
+    pub camera: Option<String>,
 }
 
 /// The data folder `dollop serve` uses when `--data` names none.
@@ -108,6 +112,13 @@ pub async fn start(a: Args) -> anyhow::Result<Running> {
     }
     if !(1..=8).contains(&a.sim_boards) {
         anyhow::bail!("--sim-boards {} must be between 1 and 8", a.sim_boards);
+    }
+    if let Some(url) = &a.camera {
+        if !(url.starts_with("http://") || url.starts_with("https://")) || url.len() > 2000 {
+            anyhow::bail!(
+                "--camera {url:?}: give the camera's http:// or https:// address (an MJPEG stream or a snapshot)"
+            );
+        }
     }
     let listen = match a.port {
         Some(p) => SocketAddr::new(a.listen.ip(), p),

@@ -78,6 +78,7 @@ async fn info(State(st): St) -> Json<serde_json::Value> {
             .map(|s| json!({ "name": s.name, "what": s.what, "with": s.with }))
             .collect::<Vec<_>>(),
         "boards": st.boards.len(),
+        "camera": st.camera,
     }))
 }
 

@@ -53,6 +53,8 @@ pub struct AppState {
     pub saved_configs: super::store::Folder,
     /// The console's lines and the boards' trends.
     pub console: Arc<super::console::Console>,
+    /// `--camera`: the stream or snapshot URL the Print page shows.
+    pub camera: Option<String>,
     /// The temporary data folder when no `--data` was given (removed with the state).
     _scratch: Option<tempfile::TempDir>,
 }
@@ -119,6 +121,7 @@ impl AppState {
             files,
             saved_configs,
             console,
+            camera: a.camera.clone(),
             _scratch: scratch,
         };
         if a.demo {

@@ -1017,6 +1017,7 @@ $("cal-apply").addEventListener("click", async () => {
       setJob(await api(`/api/jobs/${app.info.demo_job}`));
     } catch (e) { toast(e.message, true); }
   }
+  showCamera(app.info.camera);
   $("files-board").replaceChildren(...Array.from({ length: app.info.boards }, (_, i) => el("option", { value: String(i) }, String(i))));
   followBoards();
 })();
@@ -1138,3 +1139,20 @@ $("files-upload").addEventListener("change", async (e) => {
   e.target.value = "";
   loadFiles();
 });
+
+// ---------------------------------------------------------------- camera
+// `dollop serve --camera URL`: an MJPEG stream plays as it comes; a snapshot URL is
+// fetched again every two seconds while the Print page is shown.
+function showCamera(url) {
+  if (!url) return;
+  $("camera-panel").hidden = false;
+  const img = $("camera-img");
+  const stream = /mjpe?g|stream/i.test(url);
+  img.onerror = () => { $("camera-note").textContent = `The camera at ${url} does not answer.`; };
+  img.onload = () => { $("camera-note").textContent = stream ? `Live from ${url}` : `Snapshot from ${url}, ${new Date().toLocaleTimeString()}`; };
+  img.src = url;
+  if (!stream) setInterval(() => {
+    if ($("page-print").hidden) return;
+    img.src = url + (url.includes("?") ? "&" : "?") + "t=" + Date.now();
+  }, 2000);
+}
