@@ -19,6 +19,7 @@ fn args(listen: &str, auth: Option<&str>) -> serve::Args {
         no_usb: true,
         sim_boards: 1,
         data: None,
+        camera: None,
     }
 }
 

@@ -273,6 +273,7 @@ async fn run() {
         no_usb: true,
         sim_boards: 2,
         data: Some(data.path().to_path_buf()),
+        camera: None,
     })
     .await
     .expect("server starts");
@@ -337,6 +338,7 @@ async fn signed_in(c: &Client, data: &Path) {
         no_usb: true,
         sim_boards: 1,
         data: Some(data.to_path_buf()),
+        camera: Some(snapshot_server().await),
     })
     .await
     .expect("the guarded server starts");
@@ -377,6 +379,97 @@ async fn signed_in(c: &Client, data: &Path) {
     click(c, "#nav-print").await;
     wait_for(c, "document.querySelectorAll('#history tr[data-outcome=\"finished\"]').length >= 2 && document.querySelectorAll('#history tr[data-outcome=\"aborted\"]').length >= 1", 20, "the history read back by a new server").await;
     shot(c, "history.png").await;
+    // The camera panel shows the snapshot the test serves (a bundled design as the photo).
+    wait_for(
+        c,
+        "!document.getElementById('camera-panel').hidden && document.getElementById('camera-img').naturalWidth > 50",
+        20,
+        "the camera's snapshot on the Print page",
+    )
+    .await;
+    kept_files(c, data).await;
+}
+
+/// The Files page of the second server on the first one's data folder: the job the Design
+/// page sliced is still listed; a `.dlp` uploaded is decoded and listed, the console says
+/// so, and Delete removes it; the page fits a phone.
+async fn kept_files(c: &Client, data: &Path) {
+    click(c, "#nav-files").await;
+    wait_for(
+        c,
+        "document.querySelector('#files tr[data-file=\"chessboard.dlp\"][data-kind=\"job\"]')",
+        20,
+        "the first server's sliced job, kept across the restart",
+    )
+    .await;
+    // A job made for a bundled config, as `dollop slice` would write it.
+    let (name, text) = serve::design::BUNDLED[0];
+    let checked = serve::design::check(text).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let design = [serve::design::Upload {
+        name: "logo.png".into(),
+        bytes: serve::design::DESIGNS[0].1.to_vec(),
+    }];
+    let form = serve::design::SliceForm {
+        width_mm: Some(20.0),
+        ..Default::default()
+    };
+    let sliced = serve::design::slice(&design, &checked.config, &form).expect("slices");
+    let upload = tempfile::tempdir().expect("folder");
+    let path = upload.path().join("uploaded-copy.dlp");
+    std::fs::write(&path, sliced.to_bytes()).expect("writes the job");
+    c.find(Locator::Id("files-upload"))
+        .await
+        .expect("the upload picker")
+        .send_keys(&path.display().to_string())
+        .await
+        .expect("choosing the job");
+    wait_for(
+        c,
+        "document.querySelector('#files tr[data-file=\"uploaded-copy.dlp\"][data-kind=\"job\"]')",
+        30,
+        "the uploaded job listed",
+    )
+    .await;
+    wait_for(
+        c,
+        "Array.from(document.querySelectorAll('#console li')).some(l => l.textContent.includes('kept uploaded-copy.dlp'))",
+        20,
+        "the console saying the upload was kept",
+    )
+    .await;
+    assert!(data.join("files/uploaded-copy.dlp").is_file());
+    shot(c, "files.png").await;
+    js(c, "(window.confirm = () => true, true)").await;
+    click(c, "#files tr[data-file=\"uploaded-copy.dlp\"] .file-delete").await;
+    wait_for(
+        c,
+        "!document.querySelector('#files tr[data-file=\"uploaded-copy.dlp\"]')",
+        20,
+        "the deleted job gone from the list",
+    )
+    .await;
+    assert!(!data.join("files/uploaded-copy.dlp").exists());
+}
+
+/// A static snapshot endpoint, as a camera's: every request answers the same PNG. Its URL.
+async fn snapshot_server() -> String {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("snapshot listener");
+    let addr = l.local_addr().expect("address");
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        let png = serve::design::DESIGNS[0].1;
+        for mut s in l.incoming().flatten() {
+            let mut buf = [0u8; 2048];
+            let _ = s.read(&mut buf);
+            let head = format!(
+                "HTTP/1.1 200 OK\r\nContent-Type: image/png\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+                png.len()
+            );
+            let _ = s.write_all(head.as_bytes());
+            let _ = s.write_all(png);
+        }
+    });
+    format!("http://{addr}/snapshot.png")
 }
 
 /// A WebDriver session (a fresh browser), retried while chromedriver starts.
@@ -421,6 +514,14 @@ async fn reopened(c: &Client, base: &str, before: f64) {
         "{activity} at {p} (was {before})"
     );
     shot(c, "reopened.png").await;
+    // The live plots: samples a second, fetched on load and added from the status.
+    wait_for(
+        c,
+        "app.trend[1] && app.trend[1].length >= 3 && document.querySelector('.board[data-board=\"1\"] canvas.trend-plot').width > 0",
+        20,
+        "board 1's live plots filling",
+    )
+    .await;
     wait_for(c, "document.querySelector('.board[data-board=\"1\"]').dataset.activity.startsWith('finished') && document.querySelector('.board[data-board=\"1\"] .live').textContent.startsWith('100.0 %')", 180, "the print finished, seen from the new browser").await;
 }
 
@@ -1093,7 +1194,7 @@ async fn phone(c: &Client) {
     let on_screen = |css: &str| {
         format!("(e => {{ if (!e) return false; const r = e.getBoundingClientRect(); return r.width > 0 && r.left >= 0 && r.right <= window.innerWidth && r.top >= 0 && r.bottom <= window.innerHeight; }})(document.querySelector('{css}'))")
     };
-    for page in ["design", "simulate", "calibrate", "print"] {
+    for page in ["design", "simulate", "calibrate", "files", "print"] {
         click(c, &format!("#nav-{page}")).await;
         let widths = js(
             c,

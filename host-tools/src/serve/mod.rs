@@ -10,18 +10,23 @@ pub mod auth;
 pub mod boards;
 pub mod calibrate;
 pub mod clock;
+pub mod console;
 pub mod controls;
 pub mod design;
 pub mod error;
+pub mod files;
 pub mod gate;
 pub mod history;
 pub mod jobs;
 pub mod lock;
+pub mod octoprint;
+pub mod reply;
 pub mod routes;
 pub mod samples;
 pub mod simlink;
 pub mod simulate;
 pub mod state;
+pub mod store;
 pub mod view;
 
 use anyhow::Context;
@@ -72,10 +77,15 @@ pub struct Args {
     /// Simulated boards to list (a lab's printers without the printers), 1 to 8.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub sim_boards: usize,
-    /// Folder kept across restarts (the print history); default: `dollop` under the
+    /// Folder kept across restarts (the print history, kept files, configs saved by
+    /// name); default: `dollop` under the
     /// user's data folder ($XDG_DATA_HOME, else ~/.local/share).
     #[arg(long, value_name = "DIR")]
     pub data: Option<PathBuf>,
+    /// A camera the Print page shows: an MJPEG stream or a snapshot URL (http:// or
+    /// https://; a snapshot is fetched again every two seconds by the browser).
+    #[arg(long, value_name = "URL")]
+    pub camera: Option<String>,
 }
 
 /// The data folder `dollop serve` uses when `--data` names none.
@@ -103,6 +113,13 @@ pub async fn start(a: Args) -> anyhow::Result<Running> {
     if !(1..=8).contains(&a.sim_boards) {
         anyhow::bail!("--sim-boards {} must be between 1 and 8", a.sim_boards);
     }
+    if let Some(url) = &a.camera {
+        if !(url.starts_with("http://") || url.starts_with("https://")) || url.len() > 2000 {
+            anyhow::bail!(
+                "--camera {url:?}: give the camera's http:// or https:// address (an MJPEG stream or a snapshot)"
+            );
+        }
+    }
     let listen = match a.port {
         Some(p) => SocketAddr::new(a.listen.ip(), p),
         None => a.listen,
@@ -119,6 +136,7 @@ pub async fn start(a: Args) -> anyhow::Result<Running> {
     let addr = listener
         .local_addr()
         .context("the listener has no address")?;
+    console::watch(state.boards.clone(), state.console.clone());
     let app = routes::router(state.clone());
     tokio::spawn(async move {
         if let Err(e) = axum::serve(listener, app).await {

@@ -8,6 +8,7 @@ use super::assets;
 use super::boards::{Fallback, Order, View};
 use super::design::{self, Field, SliceForm, Upload};
 use super::error::{ApiError, ApiResult};
+use super::reply::{blocking, download, job_json, job_value, mime, stem};
 use super::simulate::{self, SimRun};
 use super::state::{lock, AppState, JobEntry};
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
@@ -53,6 +54,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/boards/events", get(board_events))
         .route("/api/history", get(history))
         .route("/api/boards/{id}/{action}", post(board_action))
+        .merge(super::files::routes())
+        .merge(super::octoprint::routes())
         .fallback(|| async { ApiError::missing("no such page") })
         .layer(DefaultBodyLimit::max(super::MAX_UPLOAD))
         .layer(axum::middleware::from_fn_with_state(
@@ -60,14 +63,6 @@ pub fn router(state: Arc<AppState>) -> Router {
             super::gate::guard,
         ))
         .with_state(state)
-}
-
-async fn blocking<T: Send + 'static>(
-    f: impl FnOnce() -> ApiResult<T> + Send + 'static,
-) -> ApiResult<T> {
-    tokio::task::spawn_blocking(f)
-        .await
-        .map_err(|e| ApiError::internal(format!("the work stopped unexpectedly: {e}")))?
 }
 
 async fn info(State(st): St) -> Json<serde_json::Value> {
@@ -83,6 +78,7 @@ async fn info(State(st): St) -> Json<serde_json::Value> {
             .map(|s| json!({ "name": s.name, "what": s.what, "with": s.with }))
             .collect::<Vec<_>>(),
         "boards": st.boards.len(),
+        "camera": st.camera,
     }))
 }
 
@@ -158,40 +154,6 @@ async fn sample(Path(i): Path<usize>) -> ApiResult<Response> {
     Ok(download(s.name.to_string(), s.bytes.to_vec()))
 }
 
-fn mime(name: &str) -> String {
-    match name.rsplit('.').next().unwrap_or("") {
-        "png" => "image/png",
-        "csv" => "text/csv",
-        "toml" | "gcode" | "txt" => "text/plain; charset=utf-8",
-        "stl" => "model/stl",
-        _ => "application/octet-stream",
-    }
-    .into()
-}
-
-#[derive(Serialize)]
-struct JobView<'a> {
-    id: u64,
-    figures: &'a design::Figures,
-    toolpath: &'a design::Toolpath,
-    materials: Vec<String>,
-}
-
-fn job_json(e: &JobEntry) -> Response {
-    Json(JobView {
-        id: e.id,
-        figures: &e.figures,
-        toolpath: &e.toolpath,
-        materials: e
-            .config
-            .inlets
-            .iter()
-            .map(|i| i.material.to_string())
-            .collect(),
-    })
-    .into_response()
-}
-
 async fn slice(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
     let mut uploads = Vec::new();
     let mut text = None;
@@ -222,10 +184,16 @@ async fn slice(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
     let st2 = st.clone();
     let entry = blocking(move || {
         let sliced = design::slice(&uploads, &checked.config, &form)?;
-        Ok(st2.add_job(checked.config, checked.text, sliced))
+        let job = st2.add_job(checked.config, checked.text, sliced);
+        let kept = super::files::keep_sliced(&st2, &uploads, &job);
+        Ok((job, kept))
     })
     .await?;
-    Ok(job_json(&entry))
+    // The kept job's name: a reload of the page opens it again.
+    let (entry, kept) = entry;
+    let mut v = job_value(&entry);
+    v["kept"] = json!(kept);
+    Ok(Json(v).into_response())
 }
 
 fn job_of(st: &AppState, id: u64) -> ApiResult<Arc<JobEntry>> {
@@ -240,37 +208,6 @@ fn job_of(st: &AppState, id: u64) -> ApiResult<Arc<JobEntry>> {
 async fn job_get(State(st): St, Path(id): Path<u64>) -> ApiResult<Response> {
     let e = job_of(&st, id)?;
     Ok(job_json(&e))
-}
-
-fn stem(e: &JobEntry) -> String {
-    let s: String = e
-        .figures
-        .name
-        .split(['.', ' '])
-        .next()
-        .unwrap_or("job")
-        .chars()
-        .filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
-        .collect();
-    if s.is_empty() {
-        "job".into()
-    } else {
-        s
-    }
-}
-
-fn download(name: String, bytes: Vec<u8>) -> Response {
-    (
-        [
-            (header::CONTENT_TYPE, mime(&name)),
-            (
-                header::CONTENT_DISPOSITION,
-                format!("attachment; filename=\"{name}\""),
-            ),
-        ],
-        bytes,
-    )
-        .into_response()
 }
 
 fn png(img: &image::RgbImage) -> ApiResult<Vec<u8>> {
@@ -468,7 +405,18 @@ async fn board_events(
                 .iter()
                 .map(|b| lock(&b.controller).clone())
                 .collect();
-        let data = json!({ "boards": views, "controllers": controllers }).to_string();
+        // Only the newest trend sample and the console's number go with the status (the
+        // page fetches the rest once), so each update stays the same size.
+        let trend: Vec<Option<super::console::Sample>> = (0..g.st.boards.len())
+            .map(|i| g.st.console.latest(i))
+            .collect();
+        let data = json!({
+            "boards": views,
+            "controllers": controllers,
+            "trend": trend,
+            "console_seq": g.st.console.seq(),
+        })
+        .to_string();
         Some((Ok(Event::default().event("boards").data(data)), g))
     });
     Sse::new(stream).keep_alive(KeepAlive::default())
@@ -545,10 +493,17 @@ async fn board_action(
         "park" => Order::Park,
         "resume" => Order::Resume,
         "abort" => {
+            let name = b.view.borrow().name.clone();
             return match b.abort().await {
-                Ok(m) => Ok(Json(json!({ "message": m }))),
-                Err(m) => Err(ApiError::conflict(m)),
-            }
+                Ok(m) => {
+                    st.console.info(&name, format!("abort: {m}"));
+                    Ok(Json(json!({ "message": m })))
+                }
+                Err(m) => {
+                    st.console.error(&name, format!("abort refused: {m}"));
+                    Err(ApiError::conflict(m))
+                }
+            };
         }
         "home" => Order::Home(fallback()?),
         "jog" => {
@@ -572,9 +527,16 @@ async fn board_action(
         ),
         other => return Err(ApiError::missing(format!("no board action {other:?}"))),
     };
+    let name = b.view.borrow().name.clone();
     match b.order(order).await {
-        Ok(m) => Ok(Json(json!({ "message": m }))),
-        Err(m) => Err(ApiError::conflict(m)),
+        Ok(m) => {
+            st.console.info(&name, format!("{action}: {m}"));
+            Ok(Json(json!({ "message": m })))
+        }
+        Err(m) => {
+            st.console.error(&name, format!("{action} refused: {m}"));
+            Err(ApiError::conflict(m))
+        }
     }
 }
 

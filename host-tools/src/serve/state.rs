@@ -46,6 +46,17 @@ pub struct AppState {
     pub auth: Option<super::auth::Auth>,
     /// Prints that ended (kept in `--data` when given).
     pub history: Arc<super::history::History>,
+    /// Designs, G-code and jobs kept (`--data DIR/files`; a temporary folder without
+    /// `--data`).
+    pub files: super::store::Folder,
+    /// Configs saved by name (`--data DIR/configs`).
+    pub saved_configs: super::store::Folder,
+    /// The console's lines and the boards' trends.
+    pub console: Arc<super::console::Console>,
+    /// `--camera`: the stream or snapshot URL the Print page shows.
+    pub camera: Option<String>,
+    /// The temporary data folder when no `--data` was given (removed with the state).
+    _scratch: Option<tempfile::TempDir>,
 }
 
 impl AppState {
@@ -81,7 +92,21 @@ impl AppState {
             }
             None => super::history::History::memory(),
         });
+        let scratch = match &a.data {
+            Some(_) => None,
+            None => Some(tempfile::tempdir().context("cannot create a temporary data folder")?),
+        };
+        let data = match (&a.data, &scratch) {
+            (Some(d), _) => d.clone(),
+            (None, Some(t)) => t.path().to_path_buf(),
+            (None, None) => unreachable!("a temporary folder is made when --data is absent"),
+        };
+        let files =
+            super::store::Folder::files(&data).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
+        let saved_configs =
+            super::store::Folder::configs(&data).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
         let boards = boards::start_all(a, &history);
+        let console = Arc::new(super::console::Console::new(boards.len()));
         let mut st = AppState {
             configs,
             jobs: Mutex::new(BTreeMap::new()),
@@ -93,6 +118,11 @@ impl AppState {
             cli_config,
             auth: a.auth.as_deref().map(super::auth::Auth::new).transpose()?,
             history,
+            files,
+            saved_configs,
+            console,
+            camera: a.camera.clone(),
+            _scratch: scratch,
         };
         if a.demo {
             let text = design::BUNDLED[0].1;

@@ -27,6 +27,8 @@ const app = {
   job: null,          // {id, figures, toolpath, materials}
   sim: null,          // sim id
   jobs: {},           // id -> toolpath (for boards)
+  trend: {},          // board id -> [{unix_ms, speed, flow, line_kpa}], the last minutes
+  consoleSeq: null,   // the console's newest line number shown
 };
 
 function toast(msg, bad) {
@@ -84,6 +86,8 @@ function showPage(name) {
   for (const b of document.querySelectorAll("nav .tab")) b.classList.toggle("active", b.dataset.page === name);
   for (const p of document.querySelectorAll(".page")) p.hidden = p.id !== "page-" + name;
   if (name === "design") drawPreview();
+  if (name === "files") loadFiles();
+  if (name === "print") for (const id of Object.keys(app.trend)) drawTrend(Number(id));
 }
 for (const b of document.querySelectorAll("nav .tab")) b.addEventListener("click", () => showPage(b.dataset.page));
 
@@ -183,15 +187,47 @@ async function checkConfig() {
   }
 }
 
+// `i`: a bundled or --config config's number, or "saved:NAME" for one saved by name.
 async function loadConfig(i) {
   try {
-    renderConfig(await api(`/api/configs/${i}`));
+    const saved = String(i).startsWith("saved:");
+    renderConfig(await api(saved ? `/api/saved-configs/${encodeURIComponent(String(i).slice(6))}` : `/api/configs/${i}`));
     clearFieldErrors();
+    localStorage.setItem("dollop-config", String(i));
+    $("config-name").value = saved ? String(i).slice(6).replace(/\.toml$/, "") : "";
   } catch (e) {
     showConfigError(e);
   }
 }
 $("config-select").addEventListener("change", (e) => loadConfig(e.target.value));
+
+// The configs saved by name, after the bundled ones in the list.
+async function listSavedConfigs() {
+  const sel = $("config-select");
+  for (const o of Array.from(sel.options)) if (o.value.startsWith("saved:")) o.remove();
+  let r;
+  try { r = await api("/api/saved-configs"); } catch (_) { return; }
+  for (const c of r.configs) sel.append(el("option", { value: "saved:" + c.name }, `${c.name.replace(/\.toml$/, "")} (saved)`));
+}
+
+// Writes the config on the page (edits included) under `name`; the list then selects it.
+async function saveConfig(name, text) {
+  const r = await api(`/api/saved-configs/${encodeURIComponent(name)}`, { method: "PUT", headers: { "content-type": "application/json" }, body: JSON.stringify({ text }) });
+  await listSavedConfigs();
+  $("config-select").value = "saved:" + r.name;
+  localStorage.setItem("dollop-config", "saved:" + r.name);
+  return r;
+}
+$("config-save").addEventListener("click", async () => {
+  const name = $("config-name").value.trim();
+  if (!name) return toast("Give the config a name to save it under.", true);
+  const text = await checkConfig();
+  if (!text) return;
+  try {
+    const r = await saveConfig(name, text);
+    toast(r.message);
+  } catch (e) { toast(e.message, true); }
+});
 $("config-check").addEventListener("click", async () => {
   if (await checkConfig()) toast("The config is valid.");
 });
@@ -251,7 +287,10 @@ $("slice").addEventListener("click", async () => {
   b.disabled = true;
   b.textContent = "Slicing…";
   try {
-    setJob(await upload("/api/slice", form, $("upload-progress")));
+    const job = await upload("/api/slice", form, $("upload-progress"));
+    setJob(job);
+    // What a reload opens again: the kept job and the options it was sliced with.
+    if (job.kept) localStorage.setItem("dollop-design", JSON.stringify({ kept: job.kept, options: sliceOptions() }));
     toast("Sliced.");
   } catch (e) {
     // A config path goes to the config editor; a slicing option's input is marked.
@@ -480,13 +519,14 @@ function tickLabel(v, step) {
   return v.toFixed(d);
 }
 
-function drawPlot(canvas, title, unit, lines, intTicks) {
+// `src`: the series and time window (the Simulate page's, or a board's trend).
+function drawPlot(canvas, title, unit, lines, intTicks, src = plot) {
   const g = canvas.getContext("2d");
   const W = canvas.width, H = canvas.height, L = 60, R = 10, T = 18, B = 20;
   g.clearRect(0, 0, W, H);
-  const s = plot.series;
+  const s = src.series;
   if (!s || !s.t.length) return;
-  const { t0, t1 } = plot;
+  const { t0, t1 } = src;
   let lo = Infinity, hi = -Infinity;
   for (const ln of lines) for (let i = 0; i < s.t.length; i++) {
     if (s.t[i] < t0 || s.t[i] > t1) continue;
@@ -617,6 +657,8 @@ function boardCard(b) {
   const inlet = el("select", { class: "valve-inlet" }, ...[0, 1, 2, 3].map((i) => el("option", {}, String(i))));
   const secs = el("input", { class: "num valve-secs", type: "number", step: "any", value: "1", min: "0.1", max: "10" });
   const canvas = el("canvas", { width: "420", height: "300", class: "board-canvas" });
+  const trend = el("div", { class: "trend" }, ...["speed", "flow", "pressure"].map((k) => el("canvas", { width: "600", height: "110", class: "trend-plot", "data-trend": k })));
+  loadTrend(id);
   boardViews[id] = { scale: 1, ox: 0, oy: 0, fit: true };
   zoomPan(canvas, boardViews[id], () => drawBoard(id));
   const card = el("div", { class: "board", "data-board": String(id) },
@@ -635,7 +677,8 @@ function boardCard(b) {
       el("div", { class: "controls" }, "Jog ", axis, mm, " mm ", btn("Jog", "jog", () => ({ axis: axis.value, mm: Number(mm.value) })),
         " Valve test: inlet ", inlet, " for ", secs, " s ", btn("Open", "valve", () => ({ inlet: Number(inlet.value), seconds: Number(secs.value) }))),
       el("div", { class: "controls" }, el("button", { class: "take", onclick: () => boardAction(id, "claim", {}, true), hidden: "" }, "Take control")),
-      el("div", { class: "queue" })),
+      el("div", { class: "queue" }),
+      trend),
     canvas);
   return card;
 }
@@ -651,7 +694,7 @@ async function drawBoard(id) {
   const b = lastBoards && lastBoards.boards[id];
   const card = document.querySelector(`.board[data-board="${id}"]`);
   if (!b || !card) return;
-  const canvas = card.querySelector("canvas");
+  const canvas = card.querySelector("canvas.board-canvas");
   const job = b.job ? await toolpathOf(b.job.job) : null;
   const tp = job && job.toolpath;
   const v = boardViews[id];
@@ -680,6 +723,10 @@ async function drawBoard(id) {
 function renderBoards(data) {
   if (!data) return;
   lastBoards = data;
+  if (data.console_seq !== app.consoleSeq) {
+    app.consoleSeq = data.console_seq;
+    loadConsole();
+  }
   renderHeader(data);
   // A print that ended: the history has a new record.
   for (const b of data.boards) {
@@ -738,6 +785,7 @@ function renderBoards(data) {
       q(".queue").replaceChildren(b.queue.length ? "Queue: " : "", ...b.queue.map((j) => el("span", { class: "queued", "data-job": String(j.job) }, `${j.name} (job ${j.job}) `, el("button", { class: "unqueue", onclick: () => boardAction(b.id, "unqueue", { job: j.job }) }, "remove"), " ")));
     }
     if (!$("page-print").hidden) drawBoard(b.id);
+    addTrend(b.id, (data.trend || [])[b.id]);
   }
 }
 
@@ -910,6 +958,13 @@ $("cal-apply").addEventListener("click", async () => {
     const c = await postJson("/api/config/check", { text: app.config.text, edits });
     renderConfig(c);
     clearFieldErrors();
+    // A config saved by name is written back: the calibration outlives a reload.
+    const chosen = $("config-select").value;
+    if (chosen.startsWith("saved:")) {
+      await saveConfig(chosen.slice(6), c.text);
+      toast(`Applied and saved to ${chosen.slice(6)}.`);
+      return;
+    }
     const onInlets = edits.filter((e) => e.path.startsWith("inlet[")).length;
     toast(!onInlets ? `Applied ${edits.map((e) => `${e.path} = ${e.raw}`).join(", ")}; the config on the Design page now uses it.`
       : inlet > first ? `Applied to inlets ${first} to ${inlet}; the config on the Design page now uses them.` : `Applied to inlet ${first}; the config on the Design page now uses it.`);
@@ -938,11 +993,166 @@ $("cal-apply").addEventListener("click", async () => {
   for (const g of groups) {
     bundled.append(el("button", { class: "bundled", "data-design": g[0], onclick: () => useBundled(g) }, g.join(" + ")), " ");
   }
-  await loadConfig(0);
-  if (app.info.demo_job) {
+  await listSavedConfigs();
+  // What this browser was doing: the config it chose, the design it sliced last.
+  const chosen = localStorage.getItem("dollop-config");
+  const known = chosen && Array.from(sel.options).some((o) => o.value === chosen);
+  if (known) sel.value = chosen;
+  await loadConfig(known ? chosen : 0);
+  let restored = false;
+  try {
+    const last = JSON.parse(localStorage.getItem("dollop-design") || "null");
+    if (last && last.kept) {
+      for (const [k, v] of Object.entries(last.options || {})) {
+        const input = $("opt-" + k);
+        if (!input) continue;
+        if (input.type === "checkbox") input.checked = !!v; else input.value = v;
+      }
+      setJob(await postJson(`/api/store/${encodeURIComponent(last.kept)}/open`, { config: app.config ? app.config.text : null, options: last.options }));
+      restored = true;
+    }
+  } catch (_) { localStorage.removeItem("dollop-design"); }
+  if (app.info.demo_job && !restored) {
     try {
       setJob(await api(`/api/jobs/${app.info.demo_job}`));
     } catch (e) { toast(e.message, true); }
   }
+  showCamera(app.info.camera);
+  $("files-board").replaceChildren(...Array.from({ length: app.info.boards }, (_, i) => el("option", { value: String(i) }, String(i))));
   followBoards();
 })();
+
+// ---------------------------------------------------------------- live plots
+// A board's trend (one sample a second, the last minutes): fetched once, then the newest
+// sample of each status update is added.
+async function loadTrend(id) {
+  try {
+    const r = await api(`/api/boards/${id}/trend`);
+    const have = app.trend[id] || [];
+    const last = r.samples.length ? r.samples[r.samples.length - 1].unix_ms : 0;
+    app.trend[id] = r.samples.concat(have.filter((s) => s.unix_ms > last));
+  } catch (_) { app.trend[id] = app.trend[id] || []; }
+  drawTrend(id);
+}
+function addTrend(id, s) {
+  if (!s) return;
+  const t = app.trend[id] || (app.trend[id] = []);
+  if (t.length && t[t.length - 1].unix_ms >= s.unix_ms) return;
+  t.push(s);
+  while (t.length > 300) t.shift();
+  if (!$("page-print").hidden) drawTrend(id);
+}
+function drawTrend(id) {
+  const card = document.querySelector(`.board[data-board="${id}"]`);
+  const t = app.trend[id];
+  if (!card || !t) return;
+  const now = t.length ? t[t.length - 1].unix_ms : Date.now();
+  const series = {
+    t: t.map((s) => (s.unix_ms - now) / 1000),
+    speed: t.map((s) => s.speed),
+    flow: t.map((s) => s.flow),
+  };
+  const inlets = t.reduce((n, s) => Math.max(n, s.line_kpa.length), 0);
+  const src = { series, t0: Math.min(-60, series.t.length ? series.t[0] : -60), t1: 0 };
+  for (const c of card.querySelectorAll("canvas.trend-plot")) {
+    // Drawn at the size it is shown: labels stay 12 px on a phone.
+    const w = Math.max(240, Math.round(c.clientWidth || 600));
+    if (c.width !== w) c.width = w;
+    const k = c.dataset.trend;
+    if (k === "speed") drawPlot(c, "head speed", "mm/s", [{ y: series.speed, colour: "#2f6f5e" }], undefined, src);
+    else if (k === "flow") drawPlot(c, "flow", "mm³/s", [{ y: series.flow, colour: "#3a7bd5" }], undefined, src);
+    else drawPlot(c, "line pressure", "kPa", Array.from({ length: inlets }, (_, i) => ({ y: t.map((s) => s.line_kpa[i]), colour: COLOURS[i % 8], name: String(i) })), undefined, src);
+  }
+}
+
+// ---------------------------------------------------------------- console
+async function loadConsole() {
+  let r;
+  try { r = await api("/api/console"); } catch (_) { return; }
+  const lines = r.lines.slice(0, 100);
+  $("console").replaceChildren(...lines.map((l) => el("li", { class: l.level === "error" ? "bad" : "", "data-seq": String(l.seq) },
+    el("span", { class: "muted" }, new Date(l.unix_ms).toLocaleTimeString() + " "), el("b", {}, l.source + ": "), l.text)));
+  $("console-last").textContent = lines.length ? `${lines[0].source}: ${lines[0].text}` : "";
+  if (!$("page-files").hidden && lines.some((l) => /kept|deleted|upload/.test(l.text))) loadFiles();
+}
+
+// ---------------------------------------------------------------- files
+function fmtBytes(n) {
+  return n < 1024 ? `${n} B` : n < 1048576 ? `${(n / 1024).toFixed(1)} KiB` : `${(n / 1048576).toFixed(1)} MiB`;
+}
+async function loadFiles() {
+  let r;
+  try { r = await api("/api/store"); } catch (e) { return showError("files-error", e.message); }
+  $("files-max").textContent = r.max_files;
+  $("files-none").hidden = r.files.length > 0;
+  const rows = r.files.map((f) => {
+    const enc = encodeURIComponent(f.name);
+    return el("tr", { "data-file": f.name, "data-kind": f.kind },
+      el("td", { class: "file-name" }, f.name), el("td", {}, f.kind), el("td", {}, fmtBytes(f.bytes)),
+      el("td", {}, new Date(f.modified_unix_s * 1000).toLocaleString()),
+      el("td", { class: "file-actions" },
+        el("a", { href: `/api/store/${enc}`, download: f.name }, "download"), " ",
+        el("button", { class: "file-open", title: f.kind === "job" ? "show it on the Design page" : "slice it again with the Design page's config and options", onclick: () => openFile(f.name) }, f.kind === "job" ? "Open" : "Re-slice"), " ",
+        el("button", { class: "file-print", onclick: () => printFile(f.name) }, "Print"), " ",
+        el("button", { class: "file-delete", onclick: () => deleteFile(f.name) }, "Delete")));
+  });
+  $("files").replaceChildren(...(rows.length ? [el("tr", {}, ...["name", "kind", "size", "date", ""].map((h) => el("th", {}, h)))] : []), ...rows);
+}
+async function fileJob(name) {
+  return postJson(`/api/store/${encodeURIComponent(name)}/open`, { config: app.config ? app.config.text : null, options: sliceOptions() });
+}
+async function openFile(name) {
+  showError("files-error", "");
+  try {
+    setJob(await fileJob(name));
+    if (/\.dlp$/i.test(name)) localStorage.setItem("dollop-design", JSON.stringify({ kept: name, options: sliceOptions() }));
+    showPage("design");
+  } catch (e) { showError("files-error", e.message); }
+}
+async function printFile(name) {
+  showError("files-error", "");
+  try {
+    const job = await fileJob(name);
+    app.jobs[job.id] = job;
+    await boardAction(Number($("files-board").value || 0), "send", { job: job.id });
+  } catch (e) { showError("files-error", e.message); }
+}
+async function deleteFile(name) {
+  if (!confirm(`Delete ${name} from the data folder?`)) return;
+  try {
+    await api(`/api/store/${encodeURIComponent(name)}`, { method: "DELETE" });
+    toast(`Deleted ${name}.`);
+  } catch (e) { toast(e.message, true); }
+  loadFiles();
+}
+$("files-upload").addEventListener("change", async (e) => {
+  const f = e.target.files[0];
+  if (!f) return;
+  showError("files-error", "");
+  const form = new FormData();
+  form.append("file", f, f.name);
+  if (app.config) form.append("config", app.config.text);
+  try {
+    const r = await upload("/api/store", form, $("files-progress"));
+    toast(`Kept ${r.name}.`);
+  } catch (err) { showError("files-error", err.message); }
+  e.target.value = "";
+  loadFiles();
+});
+
+// ---------------------------------------------------------------- camera
+// `dollop serve --camera URL`: an MJPEG stream plays as it comes; a snapshot URL is
+// fetched again every two seconds while the Print page is shown.
+function showCamera(url) {
+  if (!url) return;
+  $("camera-panel").hidden = false;
+  const img = $("camera-img");
+  const stream = /mjpe?g|stream/i.test(url);
+  img.onerror = () => { $("camera-note").textContent = `The camera at ${url} does not answer.`; };
+  img.onload = () => { $("camera-note").textContent = stream ? `Live from ${url}` : `Snapshot from ${url}, ${new Date().toLocaleTimeString()}`; };
+  img.src = url;
+  if (!stream) setInterval(() => {
+    if ($("page-print").hidden) return;
+    img.src = url + (url.includes("?") ? "&" : "?") + "t=" + Date.now();
+  }, 2000);
+}

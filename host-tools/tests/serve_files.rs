@@ -1,0 +1,460 @@
+//! `dollop serve`'s kept files and its OctoPrint-shaped upload API, over plain HTTP/1.1:
+//! the requests PrusaSlicer and Cura send (from their sources: PrusaSlicer's
+//! `OctoPrint::test` GETs `api/version` with `X-Api-Key` and wants an `api` field and a
+//! `text` starting "OctoPrint"; its upload POSTs `api/files/local` multipart with `print`
+//! ("true"/"false"), `path` (the folder, often empty) and `file`; Cura's OctoPrint plugin
+//! posts `select`, `print` and `file` to the same place), the key refused and accepted, a
+//! bad file refused naming it; the Files API (a `.dlp` decoded, a broken one refused,
+//! delete, no way out of the folder), configs saved by name, the console, and all of it
+//! again from a second server on the same `--data`. Plus the octorest client library from
+//! PyPI (skipped with a message when it is not installed, except under CI).
+
+use dollop_host::serve;
+use serde_json::Value;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+
+const KEY: &str = "correct horse";
+const SQUARE: &str = include_str!("data/gcode-in/square-abs-e.gcode");
+
+fn args(data: &std::path::Path, demo: bool) -> serve::Args {
+    serve::Args {
+        listen: "127.0.0.1:0".parse().expect("address"),
+        port: None,
+        auth: Some(KEY.into()),
+        config: None,
+        boards: Vec::new(),
+        demo,
+        sim_speed: 50.0,
+        no_usb: true,
+        sim_boards: 1,
+        data: Some(data.to_path_buf()),
+        camera: None,
+    }
+}
+
+/// One request (`Connection: close`): the status and the body.
+fn request(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &[u8],
+) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).expect("connects");
+    s.set_read_timeout(Some(std::time::Duration::from_secs(60)))
+        .expect("timeout");
+    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    for h in headers {
+        req.push_str(h);
+        req.push_str("\r\n");
+    }
+    req.push_str(&format!("Content-Length: {}\r\n\r\n", body.len()));
+    s.write_all(req.as_bytes()).expect("sends");
+    s.write_all(body).expect("sends the body");
+    let mut all = Vec::new();
+    s.read_to_end(&mut all).expect("reads");
+    let head_end = all
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a head");
+    let head = String::from_utf8_lossy(&all[..head_end]).into_owned();
+    let code = head
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .expect("a status");
+    let mut body = all[head_end + 4..].to_vec();
+    if head
+        .to_ascii_lowercase()
+        .contains("transfer-encoding: chunked")
+    {
+        body = unchunk(&body);
+    }
+    (code, body)
+}
+
+fn unchunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    while let Some(eol) = b.windows(2).position(|w| w == b"\r\n") {
+        let size = std::str::from_utf8(&b[..eol]).unwrap_or("0").trim();
+        let n = usize::from_str_radix(size, 16).unwrap_or(0);
+        if n == 0 {
+            break;
+        }
+        out.extend_from_slice(&b[eol + 2..eol + 2 + n]);
+        b = &b[eol + 2 + n + 2..];
+    }
+    out
+}
+
+fn json(body: &[u8]) -> Value {
+    serde_json::from_slice(body)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(body)))
+}
+
+/// A multipart form: (field, file name, content).
+fn multipart(parts: &[(&str, Option<&str>, &[u8])]) -> (String, Vec<u8>) {
+    let boundary = "----dollopTestBoundary7MA4YWxk";
+    let mut body = Vec::new();
+    for (name, file, content) in parts {
+        body.extend_from_slice(format!("--{boundary}\r\n").as_bytes());
+        match file {
+            Some(f) => body.extend_from_slice(
+                format!("Content-Disposition: form-data; name=\"{name}\"; filename=\"{f}\"\r\nContent-Type: application/octet-stream\r\n\r\n").as_bytes(),
+            ),
+            None => body.extend_from_slice(
+                format!("Content-Disposition: form-data; name=\"{name}\"\r\n\r\n").as_bytes(),
+            ),
+        }
+        body.extend_from_slice(content);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    (
+        format!("Content-Type: multipart/form-data; boundary={boundary}"),
+        body,
+    )
+}
+
+const AUTH: &str = "X-Api-Key: correct horse";
+
+fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
+    request(addr, "GET", path, &[AUTH], b"")
+}
+
+fn names(addr: SocketAddr) -> Vec<(String, String)> {
+    let (code, body) = get(addr, "/api/store");
+    assert_eq!(code, 200);
+    json(&body)["files"]
+        .as_array()
+        .expect("files")
+        .iter()
+        .map(|f| {
+            (
+                f["name"].as_str().unwrap_or("").to_string(),
+                f["kind"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect()
+}
+
+fn has(list: &[(String, String)], name: &str, kind: &str) -> bool {
+    list.iter().any(|(n, k)| n == name && k == kind)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slicer_uploads_files_and_configs_survive_a_restart() {
+    let data = tempfile::tempdir().expect("folder");
+    let r = serve::start(args(data.path(), true)).await.expect("starts");
+    let (a, st) = (r.addr, r.state.clone());
+    let demo = st.demo_job.expect("the demo job");
+    let d = data.path().to_path_buf();
+    tokio::task::spawn_blocking(move || {
+        // The probe: refused without the key or with a wrong one, answered with it.
+        assert_eq!(request(a, "GET", "/api/version", &[], b"").0, 401);
+        assert_eq!(
+            request(a, "GET", "/api/version", &["X-Api-Key: wrong horse"], b"").0,
+            401
+        );
+        let (code, body) = get(a, "/api/version");
+        assert_eq!(code, 200);
+        let v = json(&body);
+        assert!(v["api"].is_string(), "{v}");
+        assert!(
+            v["text"].as_str().unwrap_or("").starts_with("OctoPrint"),
+            "{v}"
+        );
+        for p in [
+            "/api/server",
+            "/api/settings",
+            "/api/printer",
+            "/api/job",
+            "/api/files/local",
+        ] {
+            assert_eq!(get(a, p).0, 200, "{p}");
+        }
+
+        // PrusaSlicer's upload: print=false, path (empty), file.
+        let (ct, body) = multipart(&[
+            ("print", None, b"false"),
+            ("path", None, b""),
+            ("file", Some("square.gcode"), SQUARE.as_bytes()),
+        ]);
+        assert_eq!(
+            request(a, "POST", "/api/files/local", &[&ct], &body).0,
+            401,
+            "no key, no upload"
+        );
+        let (code, resp) = request(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        assert_eq!(code, 201, "{}", String::from_utf8_lossy(&resp));
+        let v = json(&resp);
+        assert_eq!(v["files"]["local"]["name"], "square.gcode", "{v}");
+        assert_eq!(v["files"]["local"]["origin"], "local", "{v}");
+        assert_eq!(v["done"], true, "{v}");
+        let resource = v["files"]["local"]["refs"]["resource"]
+            .as_str()
+            .expect("refs")
+            .to_string();
+        assert_eq!(get(a, &resource).0, 200, "{resource}");
+        assert!(has(&names(a), "square.gcode", "gcode"));
+
+        // Cura's upload: select=true, print=true, file; the job goes to board 0.
+        let (ct, body) = multipart(&[
+            ("select", None, b"true"),
+            ("print", None, b"true"),
+            ("file", Some("cura square.gcode"), SQUARE.as_bytes()),
+        ]);
+        let (code, resp) = request(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        assert_eq!(code, 201, "{}", String::from_utf8_lossy(&resp));
+        assert_eq!(json(&resp)["files"]["local"]["name"], "cura_square.gcode");
+        let b = st.boards[0].clone();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+        loop {
+            let v = b.view.borrow().clone();
+            let on_board = v
+                .job
+                .iter()
+                .chain(v.queue.iter())
+                .any(|j| j.name.contains("square"));
+            if on_board {
+                break;
+            }
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the upload never reached the board: {:?}",
+                v.activity
+            );
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+
+        // A bad file is refused with a message naming it, and not kept.
+        let (ct, body) = multipart(&[("file", Some("bin.gcode"), &[0xff, 0xfe, 0x00])]);
+        let (code, resp) = request(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        assert_eq!(code, 400);
+        assert!(
+            json(&resp)["error"]
+                .as_str()
+                .unwrap_or("")
+                .contains("bin.gcode"),
+            "{}",
+            String::from_utf8_lossy(&resp)
+        );
+        let (ct, body) = multipart(&[
+            ("print", None, b"perhaps"),
+            ("file", Some("x.gcode"), SQUARE.as_bytes()),
+        ]);
+        assert_eq!(
+            request(a, "POST", "/api/files/local", &[AUTH, &ct], &body).0,
+            400
+        );
+        let (ct, body) = multipart(&[("file", Some("notes.txt"), b"hello")]);
+        assert_eq!(
+            request(a, "POST", "/api/files/local", &[AUTH, &ct], &body).0,
+            400
+        );
+        assert!(!names(a)
+            .iter()
+            .any(|(n, _)| n == "bin.gcode" || n == "notes.txt"));
+
+        // A job downloaded from the dashboard uploads back as a .dlp (decoded, its config
+        // found by hash); a broken copy is refused naming it.
+        let (code, dlp) = get(a, &format!("/api/jobs/{demo}/job.dlp"));
+        assert_eq!(code, 200);
+        let (ct, body) = multipart(&[("file", Some("again.dlp"), &dlp)]);
+        let (code, resp) = request(a, "POST", "/api/store", &[AUTH, &ct], &body);
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&resp));
+        let job = json(&resp)["job"].as_u64().expect("a job");
+        let (code, resp) = get(a, &format!("/api/jobs/{job}"));
+        assert_eq!(code, 200);
+        let (code, orig) = get(a, &format!("/api/jobs/{demo}"));
+        assert_eq!(code, 200);
+        assert_eq!(
+            json(&resp)["figures"]["segments"],
+            json(&orig)["figures"]["segments"]
+        );
+        let mut broken = dlp.clone();
+        let last = broken.len() - 3;
+        broken[last] ^= 0x5a;
+        let (ct, body) = multipart(&[("file", Some("broken.dlp"), &broken)]);
+        let (code, resp) = request(a, "POST", "/api/store", &[AUTH, &ct], &body);
+        assert_eq!(code, 400);
+        assert!(
+            json(&resp)["error"]
+                .as_str()
+                .unwrap_or("")
+                .contains("broken.dlp"),
+            "{}",
+            String::from_utf8_lossy(&resp)
+        );
+        assert!(has(&names(a), "again.dlp", "job"));
+        // A kept G-code file opens as a job (what the Files page's Print and Re-slice do).
+        let (code, resp) = request(
+            a,
+            "POST",
+            "/api/store/square.gcode/open",
+            &[AUTH, "Content-Type: application/json"],
+            b"{}",
+        );
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&resp));
+        assert!(json(&resp)["figures"]["segments"].as_u64().unwrap_or(0) > 0);
+
+        // No way out of the folder.
+        std::fs::write(d.join("secret.gcode"), SQUARE).expect("writes");
+        for p in [
+            "/api/store/..%2Fsecret.gcode",
+            "/api/store/%2E%2E%2Fsecret.gcode",
+            "/api/store/..",
+            "/api/store/history.jsonl",
+        ] {
+            assert_eq!(get(a, p).0, 404, "{p}");
+        }
+
+        // Configs by name: kept when they check, refused when not.
+        let (_, c) = get(a, "/api/configs/0");
+        let text = json(&c)["text"].as_str().expect("text").to_string();
+        let put = serde_json::json!({ "text": text }).to_string();
+        let j = "Content-Type: application/json";
+        assert_eq!(
+            request(
+                a,
+                "PUT",
+                "/api/saved-configs/lab%20one",
+                &[AUTH, j],
+                put.as_bytes()
+            )
+            .0,
+            200
+        );
+        let bad = serde_json::json!({ "text": "[channel]\nline_pitch_mm = -1\n" }).to_string();
+        assert_eq!(
+            request(
+                a,
+                "PUT",
+                "/api/saved-configs/bad",
+                &[AUTH, j],
+                bad.as_bytes()
+            )
+            .0,
+            400
+        );
+        let (code, resp) = get(a, "/api/saved-configs");
+        assert_eq!(code, 200);
+        assert_eq!(
+            json(&resp)["configs"][0]["name"],
+            "lab_one.toml",
+            "{}",
+            String::from_utf8_lossy(&resp)
+        );
+
+        // Delete.
+        assert_eq!(
+            request(a, "DELETE", "/api/store/again.dlp", &[AUTH], b"").0,
+            200
+        );
+        assert_eq!(get(a, "/api/store/again.dlp").0, 404);
+        assert_eq!(
+            request(a, "DELETE", "/api/store/again.dlp", &[AUTH], b"").0,
+            404
+        );
+
+        // The console saw the uploads, the refusal and the board's work, newest first.
+        let (_, resp) = get(a, "/api/console");
+        let lines = json(&resp)["lines"].as_array().expect("lines").clone();
+        let text: Vec<String> = lines
+            .iter()
+            .map(|l| l["text"].as_str().unwrap_or("").to_string())
+            .collect();
+        assert!(
+            text.iter()
+                .any(|t| t.contains("upload from a slicer: square.gcode")),
+            "{text:?}"
+        );
+        assert!(
+            text.iter()
+                .any(|t| t.contains("refused") && t.contains("bin.gcode")),
+            "{text:?}"
+        );
+        let seqs: Vec<u64> = lines
+            .iter()
+            .map(|l| l["seq"].as_u64().unwrap_or(0))
+            .collect();
+        assert!(seqs.windows(2).all(|w| w[0] > w[1]), "{seqs:?}");
+    })
+    .await
+    .expect("checks");
+
+    // A second server on the same folder lists the same files and configs.
+    let again = serve::start(args(data.path(), false))
+        .await
+        .expect("starts again");
+    let a = again.addr;
+    tokio::task::spawn_blocking(move || {
+        let list = names(a);
+        assert!(has(&list, "square.gcode", "gcode"), "{list:?}");
+        assert!(has(&list, "cura_square.gcode", "gcode"), "{list:?}");
+        assert!(!list.iter().any(|(n, _)| n == "again.dlp"), "{list:?}");
+        let (code, resp) = get(a, "/api/saved-configs/lab_one");
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&resp));
+        assert!(json(&resp)["fields"].is_array());
+    })
+    .await
+    .expect("checks after the restart");
+}
+
+/// The octorest client (PyPI) probes the version with its key, uploads a file, and is
+/// refused with a wrong key. `.ci/run` installs it; elsewhere the test says how.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_octorest_client_uploads_and_is_refused_without_the_key() {
+    let has_it = std::process::Command::new("python3")
+        .args(["-c", "import octorest"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_it {
+        if std::env::var_os("CI").is_some() {
+            panic!(
+                "CI must run this test: .ci/run installs octorest (pip install --user octorest)"
+            );
+        }
+        eprintln!(
+            "SKIPPED: the Python client octorest is not installed (pip install --user octorest)"
+        );
+        return;
+    }
+    let data = tempfile::tempdir().expect("folder");
+    let r = serve::start(args(data.path(), false))
+        .await
+        .expect("starts");
+    let url = format!("http://{}", r.addr);
+    let file = data.path().join("octorest-square.gcode");
+    std::fs::write(&file, SQUARE).expect("writes");
+    let script = r#"
+import sys, octorest
+url, key, path = sys.argv[1:4]
+c = octorest.OctoRest(url=url, apikey=key)
+print("version", c.version["api"], c.version["text"])
+r = c.upload(path)
+print("uploaded", r["files"]["local"]["name"], r["done"])
+try:
+    octorest.OctoRest(url=url, apikey="wrong horse")
+    print("accepted a wrong key")
+except RuntimeError as e:
+    print("refused", e)
+"#;
+    let out = tokio::process::Command::new("python3")
+        .args(["-c", script, &url, KEY])
+        .arg(&file)
+        .output()
+        .await
+        .expect("runs python3");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{text}\n{err}");
+    assert!(text.contains("version 0.1 OctoPrint"), "{text}");
+    assert!(
+        text.contains("uploaded octorest-square.gcode True"),
+        "{text}"
+    );
+    assert!(text.contains("refused"), "{text}");
+    assert!(data.path().join("files/octorest-square.gcode").is_file());
+}
