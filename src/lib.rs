@@ -24,6 +24,7 @@ pub mod step_gen;
 pub mod step_ramps;
 pub mod switch_window;
 pub mod vol;
+pub mod width_blend;
 pub mod wire;
 
 pub use capacity::DEFAULT_INLETS;

@@ -15,6 +15,7 @@
 //! `m` reaches `-h`, so a step's own window may still change while it is that far off.
 
 use crate::real::Real;
+use crate::width_blend::WidthBlend;
 
 /// Steps re-ramped at once. Two a switch at most (a flow step split across two cycles),
 /// and switches are several windows apart; a step finding no room keeps the machine's
@@ -63,6 +64,8 @@ pub struct StepRamps {
     half_max: i32,
     /// Window frames per position unit a cycle of velocity step (0: no re-ramping).
     frames_per_unit: f32,
+    /// The ring's width changes, blended (beside the ring for the same reason as these).
+    blend: WidthBlend,
 }
 
 impl StepRamps {
@@ -82,12 +85,14 @@ impl StepRamps {
             skipped: false,
             half_max: 0,
             frames_per_unit: 0.0,
+            blend: WidthBlend::new(),
         }
     }
 
     /// No steps; windows of `window` frames (odd), each step's sized at
     /// `frames_per_unit` frames per position unit a cycle of its velocity step (0: off).
     pub fn reset(&mut self, window: u32, frames_per_unit: f32) {
+        self.blend.reset(window / 2);
         self.len = 0;
         self.live = 0;
         self.skipped = false;
@@ -97,6 +102,11 @@ impl StepRamps {
         } else {
             0.0
         };
+    }
+
+    /// The ring's width-change blend (`crate::width_blend`).
+    pub fn blend(&mut self) -> &mut WidthBlend {
+        &mut self.blend
     }
 
     /// Is the second difference `d2` (X, Y) a step? One branch on the tick's path.
