@@ -25,6 +25,7 @@ pub mod routes;
 pub mod samples;
 pub mod simlink;
 pub mod simulate;
+pub mod snapshot;
 pub mod state;
 pub mod store;
 pub mod view;

@@ -56,6 +56,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/boards/{id}/{action}", post(board_action))
         .merge(super::files::routes())
         .merge(super::octoprint::routes())
+        .merge(super::snapshot::routes())
         .fallback(|| async { ApiError::missing("no such page") })
         .layer(DefaultBodyLimit::max(super::MAX_UPLOAD))
         .layer(axum::middleware::from_fn_with_state(

@@ -1151,8 +1151,33 @@ function showCamera(url) {
   img.onerror = () => { $("camera-note").textContent = `The camera at ${url} does not answer.`; };
   img.onload = () => { $("camera-note").textContent = stream ? `Live from ${url}` : `Snapshot from ${url}, ${new Date().toLocaleTimeString()}`; };
   img.src = url;
+  $("camera-inspect").onclick = inspectFromCamera;
   if (!stream) setInterval(() => {
     if ($("page-print").hidden) return;
     img.src = url + (url.includes("?") ? "&" : "?") + "t=" + Date.now();
   }, 2000);
+}
+
+// "Inspect this print": the server takes a picture from the camera and measures it against
+// the current job (`dollop inspect --suggest`); the report, the fragment and the picture.
+async function inspectFromCamera() {
+  const err = $("camera-inspect-error");
+  err.hidden = true;
+  if (!app.job) { err.textContent = "Slice or open the job this print was made from first (Design or Files page)."; err.hidden = false; return; }
+  const btn = $("camera-inspect");
+  btn.disabled = true;
+  btn.textContent = "Measuring...";
+  try {
+    const r = await postJson("/api/inspect", { job: app.job.id });
+    $("camera-inspect-img").src = r.picture;
+    $("camera-inspect-report").textContent = r.report + (r.suggestions.length ? "suggestions:\n  " + r.suggestions.join("\n  ") + "\n" : "");
+    $("camera-inspect-fragment").textContent = r.fragment ? "Config fragment (apply with dollop config --apply, or paste it on the Design page):\n" + r.fragment : (r.no_correction_needed ? "No correction needed: the config already puts the boundaries where the picture shows them." : "");
+    $("camera-inspection").hidden = false;
+  } catch (e) {
+    err.textContent = e.message;
+    err.hidden = false;
+  } finally {
+    btn.disabled = false;
+    btn.textContent = "Inspect this print";
+  }
 }
