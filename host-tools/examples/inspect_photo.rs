@@ -44,15 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let job = dollop_sim::Job { commands, ..job };
     let dir = root.join("data/inspect");
     std::fs::create_dir_all(&dir)?;
-    let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(
-        &job.commands,
-        &body,
-        job.start_um,
-        job.initial_material,
-        &config,
-    );
-    job_file::write_job(&dir.join("chessboard.dlp"), &header, &body)?;
+    job_file::write(&dir.join("chessboard.dlp"), &job, &config)?;
     let truth = Truth {
         channel_scale: 1.2,
         ..Default::default()

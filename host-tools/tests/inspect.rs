@@ -1017,16 +1017,8 @@ fn a_print_that_needs_no_correction_is_a_success_on_the_command_line() {
         &cam,
         &job,
     );
-    let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(
-        &job.commands,
-        &body,
-        job.start_um,
-        job.initial_material,
-        &exec,
-    );
     let job_path = dir.path().join("exact.dlp");
-    job_file::write_job(&job_path, &header, &body).unwrap();
+    job_file::write(&job_path, &job, &exec).unwrap();
     let fragment = dir.path().join("fix.toml");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dollop"))
         .arg("inspect")

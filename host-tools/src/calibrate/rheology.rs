@@ -301,13 +301,9 @@ pub fn calibrate_table(table: &Table, options: Options) -> Result<Calibration, C
         (None, Some(k)) => (k, "the header"),
         (None, None) if table.header.is_none() => (Kind::Rotational, "default (no header)"),
         (None, None) => {
-            return Err(CalError::Unclear {
+            return Err(CalError::KindUnclear {
                 path: table.path.clone(),
-                message: format!(
-                    "cannot tell from the header {:?} whether this is a rotational or an \
-                     oscillatory test; say --kind rotational or --kind oscillatory",
-                    table.header_of(0).unwrap_or("")
-                ),
+                header: table.header_of(0).unwrap_or("").to_string(),
             })
         }
     };

@@ -10,7 +10,7 @@
 use super::design::Upload;
 use super::error::{ApiError, ApiResult};
 use crate::calibrate::camera::{self, frames};
-use crate::calibrate::error::CalError;
+use crate::calibrate::error::{CalError, CalOption};
 use crate::calibrate::lag::{self, InletKind};
 use crate::calibrate::rheology::{self, Kind};
 use crate::calibrate::{flow, output};
@@ -341,7 +341,13 @@ fn camera_refusal(kept: &Kept, e: CalError) -> ApiError {
             name(&path)
         ),
         CalError::OverLimit { what, option, .. } => format!(
-            "{what} (the dashboard's limit); send fewer frames or crop them to the filament, or run dollop calibrate camera on the folder with {option}"
+            "{what} (the dashboard's limit); send fewer frames or crop them to the filament, or run dollop calibrate camera on the folder with {}",
+            // The command's flags for the two limits frames are read under.
+            if option == CalOption::MaxFrames {
+                "--max-frames"
+            } else {
+                "--max-pixels"
+            }
         ),
         CalError::NotMeasurable { message, .. } => format!(
             "{message}: the frames should show the filament leaving the nozzle, moving down, in focus and lit; set the region of interest around it"

@@ -63,11 +63,8 @@ pub fn transit_mm(machine: &Machine<f64, 4>) -> f64 {
     machine.v_transit().mm3::<f64>() / machine.bead_area
 }
 
-/// Millimetres to the jobs' integer micrometres, rounded to the nearest: the slicer's one
-/// conversion (the toolpath emitter and the markers use it).
-pub fn um(mm: f64) -> i32 {
-    (mm * 1000.0).round() as i32
-}
+/// Millimetres to the jobs' integer micrometres (the one conversion, `dollop_sim::um`).
+pub use dollop_sim::um;
 
 /// Builds commands as integer micrometres from absolute targets, so rounding never drifts.
 struct Emitter {
