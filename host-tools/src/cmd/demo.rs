@@ -149,7 +149,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         &config,
         &job,
         true,
-        simulate::Outputs {
+        simulate::Recording {
             trace: None,
             heatmap: Some(&mut heat),
             progress: true,
