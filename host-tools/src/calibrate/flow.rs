@@ -6,7 +6,7 @@
 use super::error::{CalError, CalOption, OptionError};
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, short, sig, toml_float, toml_string};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::rheology::rheology_toml;
 use super::table::{Bound, Limits, Table};
@@ -538,7 +538,7 @@ impl Calibration {
     }
 
     /// Flow against pressure, log-log, each material with its supported law.
-    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut StagedFiles) -> Result<(), CalError> {
         let mut panel = Panel {
             title: "flow against supply pressure".into(),
             x_label: "pressure (kPa)".into(),

@@ -5,7 +5,7 @@
 
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, sig, toml_float};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::table::{Bound, Limits, Table};
 use super::CalError;
@@ -585,7 +585,7 @@ impl Calibration {
     }
 
     /// Data and fits (log-log) over relative residuals.
-    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut StagedFiles) -> Result<(), CalError> {
         let (xn, yn) = match self.kind {
             Kind::Rotational => ("shear rate (1/s)", "shear stress (Pa)"),
             Kind::Oscillatory => ("angular frequency (rad/s)", "|G*| (Pa)"),

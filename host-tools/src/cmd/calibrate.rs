@@ -7,7 +7,7 @@ use crate::calibrate::camera::frames;
 use crate::calibrate::camera::{parse_roi, parse_window};
 use crate::calibrate::flow::RateUnit;
 use crate::calibrate::lag::{InletKind, TimeUnit};
-use crate::calibrate::output::{self, load_config, Outputs};
+use crate::calibrate::output::{self, load_config, StagedFiles};
 use crate::calibrate::rheology::Kind;
 use crate::calibrate::{camera, flow, lag, rheology, syringe, table, CalError, CalOption};
 use std::fmt::Write as _;
@@ -483,7 +483,7 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
         ..
     } = p;
     // Fragment and plot are staged, then renamed together: a failure on one leaves neither.
-    let mut staged = Outputs::new();
+    let mut staged = StagedFiles::new();
     if let Some(path) = &output.out {
         let f = fragment.ok_or_else(|| {
             CalError::arg(format!(
@@ -503,4 +503,4 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
     Ok(())
 }
 
-type Plotter = Box<dyn FnOnce(&Path, &mut Outputs) -> Result<(), CalError>>;
+type Plotter = Box<dyn FnOnce(&Path, &mut StagedFiles) -> Result<(), CalError>>;

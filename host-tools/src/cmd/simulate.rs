@@ -118,7 +118,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
     // Trace and heatmap are staged and renamed together at the end: an interrupted or
     // failed run leaves neither (Ctrl-C removes the temporary files).
-    let mut staged = output::Outputs::new();
+    let mut staged = output::StagedFiles::new();
     let run_it = |out: Recording<'_>| {
         simulate_job(&config, &job, plant, out).with_context(|| job_name.clone())
     };

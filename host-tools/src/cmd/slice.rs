@@ -376,7 +376,7 @@ fn finish(
     // Every output is staged (written whole to a temporary file beside it) before any is
     // renamed into place: a failure on one (a missing folder, a FIFO at the path) leaves
     // none of them.
-    let mut staged = output::Outputs::new();
+    let mut staged = output::StagedFiles::new();
     let job_bytes = sliced.to_bytes();
     output::stage(&mut staged, &out, |w| w.write_all(&job_bytes))?;
     if let (Some(path), Some((text, _))) = (&a.gcode, &gcode) {

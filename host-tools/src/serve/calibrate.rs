@@ -84,10 +84,10 @@ impl Kept {
         &self,
         report: String,
         fragment: Option<String>,
-        plot: impl FnOnce(&std::path::Path, &mut output::Outputs) -> Result<(), CalError>,
+        plot: impl FnOnce(&std::path::Path, &mut output::StagedFiles) -> Result<(), CalError>,
     ) -> ApiResult<Shown> {
         let at = self.dir.path().join("plot.png");
-        let mut out = output::Outputs::new();
+        let mut out = output::StagedFiles::new();
         plot(&at, &mut out)
             .map_err(|e| ApiError::from(e).map_message(|m| self.strip(m.to_string())))?;
         output::commit(out).map_err(|e| ApiError::internal(self.strip(e.to_string())))?;

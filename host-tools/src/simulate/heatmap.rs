@@ -155,7 +155,7 @@ impl Heatmap {
 
     /// Writes the PNG atomically.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let mut staged = output::Outputs::new();
+        let mut staged = output::StagedFiles::new();
         self.stage(&mut staged, path)?;
         output::commit(staged)?;
         Ok(())
@@ -163,7 +163,7 @@ impl Heatmap {
 
     /// Stages the framed PNG ([`Heatmap::figure`]) in `staged` (renamed into place when
     /// it is committed).
-    pub fn stage(&self, staged: &mut output::Outputs, path: &Path) -> anyhow::Result<()> {
+    pub fn stage(&self, staged: &mut output::StagedFiles, path: &Path) -> anyhow::Result<()> {
         use image::ImageEncoder;
         let img = self
             .figure()

@@ -5,7 +5,7 @@
 //! heatmaps are not drawn here.
 
 use super::error::SliceError;
-use super::output::{stage, write_atomic, Outputs};
+use super::output::{stage, write_atomic, StagedFiles};
 use crate::figure;
 use dollop::command::walk::{walk, MoveKind};
 use dollop::Command;
@@ -279,7 +279,7 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), SliceError> {
 }
 
 /// Stages an RGB image as PNG for `path` in `out` (renamed when `out` is committed).
-pub fn stage_png(out: &mut Outputs, path: &Path, img: &RgbImage) -> Result<(), SliceError> {
+pub fn stage_png(out: &mut StagedFiles, path: &Path, img: &RgbImage) -> Result<(), SliceError> {
     stage(out, path, |w| encode_png(img, w))
 }
 

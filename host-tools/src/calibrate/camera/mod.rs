@@ -11,7 +11,7 @@ pub mod track;
 
 use super::error::{positive, CalOption};
 use super::format::{short, sig, toml_float};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::savgol;
 use super::CalError;
@@ -407,7 +407,7 @@ impl Calibration {
     }
 
     /// Speed and width through the sequence, raw and smoothed.
-    pub fn plot(&self, path: &Path, fps: f64, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, fps: f64, out: &mut StagedFiles) -> Result<(), CalError> {
         let t = |i: usize| i as f64 / fps;
         let speed = Panel {
             title: format!("extrusion speed: {} mm/s", sig(self.v_ex, 4)),
