@@ -5,7 +5,7 @@
 //! light, blur, noise; seeded, so the files change only when this does).
 //! Run: `cargo run -p dollop-host --example inspect_photo`.
 
-use dollop_host::inspect::frame::Frame;
+use dollop_host::inspect::frame::DesignFrame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design};
 use dollop_host::slicer::{job_file, markers};
@@ -55,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     // The photo takes in the markers.
     let (lo, hi) = plan.extent();
-    let frame = Frame {
+    let frame = DesignFrame {
         lo,
         hi,
         px_per_mm: 40.0,

@@ -5,7 +5,7 @@
 //! error against the deposit's, and a print re-simulated after one `--suggest` correction.
 
 use dollop::config::Config;
-use dollop_host::inspect::frame::Frame;
+use dollop_host::inspect::frame::DesignFrame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design, measure, suggest};
 use dollop_sim::designs::{self, Fill, Job};
@@ -70,7 +70,7 @@ fn deposit(
     let (pitch, radius) = inspect::geometry(exec);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     let (lo, hi) = plan.extent();
-    let frame = Frame {
+    let frame = DesignFrame {
         lo,
         hi,
         px_per_mm: 40.0,

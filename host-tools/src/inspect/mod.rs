@@ -22,7 +22,7 @@ pub use error::InspectError;
 
 use design::Plan;
 use dollop::Command;
-use frame::Frame;
+use frame::DesignFrame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -110,7 +110,7 @@ pub struct Inspection {
     /// The plan it was compared with.
     pub plan: Plan,
     /// The frame it was rectified into.
-    pub frame: Frame,
+    pub frame: DesignFrame,
     /// Per frame pixel: the material the photo shows, or `PLATE`.
     pub seen: Vec<u8>,
     /// Per frame pixel: the design's material, or `PLATE`.
@@ -400,7 +400,7 @@ pub fn inspect_photo(
             message: "the job prints nothing to compare the photo with".into(),
         });
     }
-    let frame = Frame {
+    let frame = DesignFrame {
         lo: plan.lo,
         hi: plan.hi,
         px_per_mm: o.px_per_mm,
