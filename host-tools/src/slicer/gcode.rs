@@ -5,7 +5,7 @@
 //! during the valve's dead time), and wherever the channel holds more than one material
 //! the head speed follows the flow, `v = Q / S`, in sub-segments of at most 0.25 mm.
 //! The seed paper's coarser scheme (a handful of segments per switch) is here too, as the
-//! baseline the tests compare against. Simulating G-code is `gcode_sim`'s.
+//! baseline the tests compare against. Simulating G-code is `gcode_feed_judge`'s.
 
 use super::error::SliceError;
 use super::output::write_atomic;

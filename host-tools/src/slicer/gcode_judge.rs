@@ -61,7 +61,7 @@ pub fn parse(text: &str) -> Vec<Op> {
         let mut words = code.split_whitespace();
         let Some(cmd) = words.next() else { continue };
         // Words with non-finite numbers are skipped, as unknown words are.
-        let word = |w: &str| super::gcode_sim::word(w).filter(|v| v.1.is_finite());
+        let word = |w: &str| super::gcode_feed_judge::word(w).filter(|v| v.1.is_finite());
         match cmd.to_ascii_uppercase().as_str() {
             c @ ("G0" | "G1") => {
                 let mut to = pos;
