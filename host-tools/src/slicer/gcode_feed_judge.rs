@@ -38,17 +38,25 @@ pub(super) fn word(w: &str) -> Option<(char, f64)> {
         .map(|v| (c.to_ascii_uppercase(), v))
 }
 
+/// Each G-code line's command word (upper case) and the words after it; comments (from
+/// `;`) and blank lines are skipped. Both judges read their G-code through it.
+pub(super) fn statements(
+    text: &str,
+) -> impl Iterator<Item = (String, std::str::SplitWhitespace<'_>)> {
+    text.lines().filter_map(|line| {
+        let mut words = line.split(';').next().unwrap_or("").split_whitespace();
+        words.next().map(|cmd| (cmd.to_ascii_uppercase(), words))
+    })
+}
+
 /// Parses the subset of RepRapFirmware G-code that `gcode::export` writes. Unknown lines
 /// and words are skipped.
 pub fn parse(text: &str) -> Vec<Op> {
     let mut ops = Vec::new();
     let mut pos = [0.0f64; 3];
     let mut f = 1.0f64;
-    for line in text.lines() {
-        let code = line.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
-        match cmd.to_ascii_uppercase().as_str() {
+    for (cmd, words) in statements(text) {
+        match cmd.as_str() {
             "G0" | "G1" => {
                 let mut to = pos;
                 for w in words {

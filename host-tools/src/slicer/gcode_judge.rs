@@ -12,6 +12,7 @@
 //! the path the G-code traced against the design, and the bead section over every
 //! `SECTION_MM` of bead. Parsing reads only the words dollop writes; others are skipped.
 
+use super::gcode_feed_judge::statements;
 use dollop::command::{walk, MoveKind};
 use dollop::config::Config;
 use dollop::Command;
@@ -56,13 +57,10 @@ pub fn parse(text: &str) -> Vec<Op> {
     let mut ops = Vec::new();
     let mut pos = [0.0f64; 3];
     let mut f = 1.0f64;
-    for line in text.lines() {
-        let code = line.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
+    for (cmd, words) in statements(text) {
         // Words with non-finite numbers are skipped, as unknown words are.
         let word = |w: &str| super::gcode_feed_judge::word(w).filter(|v| v.1.is_finite());
-        match cmd.to_ascii_uppercase().as_str() {
+        match cmd.as_str() {
             c @ ("G0" | "G1") => {
                 let mut to = pos;
                 let mut bits = None;
