@@ -12,7 +12,7 @@
 //! the path the G-code traced against the design, and the bead section over every
 //! `SECTION_MM` of bead. Parsing reads only the words dollop writes; others are skipped.
 
-use super::gcode_feed_judge::statements;
+use super::gcode_feed_judge::{move_word, statements};
 use dollop::command::{walk, MoveKind};
 use dollop::config::Config;
 use dollop::Command;
@@ -64,16 +64,12 @@ pub fn parse(text: &str) -> Vec<Op> {
             c @ ("G0" | "G1") => {
                 let mut to = pos;
                 let mut bits = None;
-                for w in words {
-                    match word(w) {
-                        Some(('X', v)) => to[0] = v,
-                        Some(('Y', v)) => to[1] = v,
-                        Some(('Z', v)) => to[2] = v,
-                        Some(('F', v)) if v > 0.0 => f = v / 60.0,
-                        Some(('P', v)) if (0.0..=u32::MAX as f64).contains(&v) => {
-                            bits = Some(v as u32)
-                        }
-                        _ => {}
+                for (c, v) in words.filter_map(word) {
+                    if !move_word(c, v, &mut to, &mut f)
+                        && c == 'P'
+                        && (0.0..=u32::MAX as f64).contains(&v)
+                    {
+                        bits = Some(v as u32)
                     }
                 }
                 ops.push(Op::Move {
