@@ -24,6 +24,8 @@ import os
 import re
 import sys
 
+from rust_text import code_only
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 HOST = os.path.join(HERE, "..", "host-tools", "src")
 CORE = os.path.join(HERE, "..", "src")
@@ -52,40 +54,7 @@ def module_files(root, skip=()):
 
 def strip(text):
     """The code without comments, string/char literals and `#[cfg(test)]` modules."""
-    out = []
-    i, n = 0, len(text)
-    while i < n:
-        c = text[i]
-        if text.startswith("//", i):
-            j = text.find("\n", i)
-            i = n if j < 0 else j
-        elif text.startswith("/*", i):
-            j = text.find("*/", i + 2)
-            i = n if j < 0 else j + 2
-        elif c == "r" and re.match(r'r#*"', text[i:]) and not (i and (text[i - 1].isalnum() or text[i - 1] == "_")):
-            m = re.match(r'r(#*)"', text[i:])
-            end = '"' + m.group(1)
-            j = text.find(end, i + len(m.group(0)))
-            i = n if j < 0 else j + len(end)
-            out.append('""')
-        elif c == '"':
-            j = i + 1
-            while j < n and text[j] != '"':
-                j += 2 if text[j] == "\\" else 1
-            i = j + 1
-            out.append('""')
-        elif c == "'":
-            m = re.match(r"'(\\.[^']*|[^\\'])'", text[i:])
-            if m:
-                i += len(m.group(0))
-                out.append("' '")
-            else:
-                out.append(c)
-                i += 1
-        else:
-            out.append(c)
-            i += 1
-    code = "".join(out)
+    code = code_only(text)
     # Drop `#[cfg(test)] mod name { ... }` bodies.
     while True:
         m = re.search(r"#\[cfg\(test\)\]\s*(pub(\([^)]*\))?\s+)?mod\s+\w+\s*\{", code)

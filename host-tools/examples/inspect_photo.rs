@@ -5,7 +5,7 @@
 //! light, blur, noise; seeded, so the files change only when this does).
 //! Run: `cargo run -p dollop-host --example inspect_photo`.
 
-use dollop_host::inspect::frame::Frame;
+use dollop_host::inspect::frame::DesignFrame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design};
 use dollop_host::slicer::{job_file, markers};
@@ -44,15 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let job = dollop_sim::Job { commands, ..job };
     let dir = root.join("data/inspect");
     std::fs::create_dir_all(&dir)?;
-    let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(
-        &job.commands,
-        &body,
-        job.start_um,
-        job.initial_material,
-        &config,
-    );
-    job_file::write_job(&dir.join("chessboard.dlp"), &header, &body)?;
+    job_file::write(&dir.join("chessboard.dlp"), &job, &config)?;
     let truth = Truth {
         channel_scale: 1.2,
         ..Default::default()
@@ -63,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     // The photo takes in the markers.
     let (lo, hi) = plan.extent();
-    let frame = Frame {
+    let frame = DesignFrame {
         lo,
         hi,
         px_per_mm: 40.0,

@@ -131,6 +131,6 @@ fn bad_scales_are_argument_errors() {
     Synth::default().write(dir.path(), 2).unwrap();
     for (fps, s) in [(0.0, 0.01), (30.0, -1.0), (f64::NAN, 0.01)] {
         let e = calibrate(dir.path(), &Options::new(fps, s)).unwrap_err();
-        assert!(matches!(e, CalError::Argument(_)), "{e}");
+        assert!(matches!(e, CalError::Option(_)), "{e}");
     }
 }

@@ -61,8 +61,13 @@ fn a_short_row_is_refused() {
 #[test]
 fn a_header_that_does_not_say_what_it_is_asks_for_kind() {
     let (e, msg) = rheology_error("x,y\n1,10\n2,19\n3,27\n");
-    assert!(matches!(e, CalError::Unclear { .. }), "{msg}");
-    assert!(msg.contains("--kind"), "{msg}");
+    // The library names no flag: `dollop calibrate` says `--kind`, the dashboard points
+    // at its kind list.
+    assert!(matches!(e, CalError::KindUnclear { .. }), "{msg}");
+    assert!(
+        msg.contains("rotational or oscillatory") && !msg.contains("--"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -149,4 +154,45 @@ fn out_into_a_missing_folder_is_a_write_error() {
     .unwrap_err();
     assert!(matches!(e, CalError::Write { .. }), "{e}");
     assert!(e.to_string().contains("/nonexistent/dir/frag.toml"));
+}
+
+#[test]
+fn the_command_names_its_flags_where_the_library_names_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let header = write(dir.path(), "x.csv", "x,y\n1,10\n2,19\n3,27\n");
+    let mass = write(
+        dir.path(),
+        "mass.csv",
+        "pressure_kpa,flow_g_min,material\n1,0.1,a\n2,0.2,a\n3,0.3,a\n",
+    );
+    let cases: [(Vec<&str>, &str); 6] = [
+        (
+            vec!["syringe", "--diameter", "10"],
+            "--diameter and --lead go together (syringe bore and lead screw)",
+        ),
+        (
+            vec!["syringe", "--mg-per-step", "0.1"],
+            "--mg-per-step needs --density (g/ml) to become a volume",
+        ),
+        (
+            vec!["syringe"],
+            "give the syringe geometry (--diameter and --lead) or a measurement (--mg-per-step and --density)",
+        ),
+        (
+            vec!["syringe", "--diameter", "10", "--lead=-1"],
+            "--lead -1 must be above zero",
+        ),
+        (
+            vec!["rheology", header.to_str().unwrap()],
+            "say --kind rotational or --kind oscillatory",
+        ),
+        (
+            vec!["flow", mass.to_str().unwrap()],
+            "flows are in g/min: say --density G_PER_ML to turn them into volume",
+        ),
+    ];
+    for (args, want) in cases {
+        let e = run(&args).unwrap_err().to_string();
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
 }

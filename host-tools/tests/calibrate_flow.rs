@@ -10,6 +10,7 @@ use dollop::config::Pressure;
 use dollop::rheology::{FlowLaw, Rheology};
 use dollop_host::calibrate::flow::{calibrate, Options, RateUnit, Which};
 use dollop_host::calibrate::output::load_config;
+use dollop_host::calibrate::CalError;
 use std::fmt::Write as _;
 
 /// Flow (mm^3/s) at pressure `p_pa` through the seed channel (d 0.8, L 2.4) full of `r`.
@@ -129,7 +130,7 @@ fn mass_flows_convert_with_the_density() {
     );
     let mut o = seed_options();
     let e = calibrate(&path, &o).unwrap_err();
-    assert!(e.to_string().contains("--density"), "{e}");
+    assert!(matches!(e, CalError::NeedsDensity { .. }), "{e}");
     o.density_g_ml = Some(1.2);
     let cal = calibrate(&path, &o).unwrap();
     assert_eq!(cal.unit, RateUnit::GPerMin);

@@ -5,7 +5,7 @@
 //! error against the deposit's, and a print re-simulated after one `--suggest` correction.
 
 use dollop::config::Config;
-use dollop_host::inspect::frame::Frame;
+use dollop_host::inspect::frame::DesignFrame;
 use dollop_host::inspect::synth::{self, Camera, Truth};
 use dollop_host::inspect::{self, design, measure, suggest};
 use dollop_sim::designs::{self, Fill, Job};
@@ -70,7 +70,7 @@ fn deposit(
     let (pitch, radius) = inspect::geometry(exec);
     let plan = design::plan(&job.commands, job.start_um, pitch, radius);
     let (lo, hi) = plan.extent();
-    let frame = Frame {
+    let frame = DesignFrame {
         lo,
         hi,
         px_per_mm: 40.0,
@@ -1036,16 +1036,8 @@ fn a_print_that_needs_no_correction_is_a_success_on_the_command_line() {
         &cam,
         &job,
     );
-    let body = job_file::encode_body(&job.commands);
-    let header = job_file::header_for(
-        &job.commands,
-        &body,
-        job.start_um,
-        job.initial_material,
-        &exec,
-    );
     let job_path = dir.path().join("exact.dlp");
-    job_file::write_job(&job_path, &header, &body).unwrap();
+    job_file::write(&job_path, &job, &exec).unwrap();
     let fragment = dir.path().join("fix.toml");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dollop"))
         .arg("inspect")

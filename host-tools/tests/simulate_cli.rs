@@ -54,10 +54,13 @@ fn write_commands(
 ) -> (PathBuf, PathBuf) {
     let cfg_path = repo().join("configs/seed-paper-valves.toml");
     let cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&cfg_path).unwrap()).unwrap();
-    let body = job_file::encode_body(commands);
-    let header = job_file::header_for(commands, &body, start_um, initial_material, &cfg);
+    let job = dollop_sim::Job {
+        start_um,
+        initial_material,
+        commands: commands.to_vec(),
+    };
     let path = dir.join(name);
-    job_file::write_job(&path, &header, &body).unwrap();
+    job_file::write(&path, &job, &cfg).unwrap();
     (path, cfg_path)
 }
 

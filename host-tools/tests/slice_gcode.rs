@@ -5,7 +5,7 @@
 
 use dollop_host::fixtures::chessboard_design;
 use dollop_host::slicer::gcode::{self, Style};
-use dollop_host::slicer::gcode_sim::{self, Figures};
+use dollop_host::slicer::gcode_feed_judge::{self, Figures};
 use dollop_host::slicer::{self, PathOptions};
 use std::path::Path;
 
@@ -35,7 +35,7 @@ fn compare(config_name: &str, ideal: bool, square_mm: f64) -> (Figures, Figures)
     let bounds = gcode::design_boundaries(&s.commands, start, init);
     let run = |style| {
         let (text, stats) = gcode::export(&s.commands, start, init, &m, &[], style).unwrap();
-        let f = gcode_sim::simulate(&text, &m, init, &bounds, 600.0);
+        let f = gcode_feed_judge::simulate(&text, &m, init, &bounds, 600.0);
         eprintln!(
             "{config_name}{}, {square_mm} mm squares, {style:?}: {} bytes; boundaries {} designed / {} landed, worst error {:.4} mm (mean {:.4}), section {:.3}..{:.3}, {:.1} s",
             if ideal { " (ideal valves)" } else { "" },
@@ -116,7 +116,7 @@ fn the_simulation_sees_a_wrong_lead() {
     let c = config("seed-paper.toml");
     let m = slicer::validate(Path::new("seed"), &c).unwrap();
     let g = "G1 Z0.8 F1200\nG1 X10 Y10 F4800\nM42 P0 S1\nG1 X20 F600\nM42 P0 S0\nM42 P1 S1\nG1 X30 F600\nM42 P1 S0\n";
-    let f = gcode_sim::simulate(g, &m, 0, &[(10.0, 1)], 60.0);
+    let f = gcode_feed_judge::simulate(g, &m, 0, &[(10.0, 1)], 60.0);
     let l_adv = m.v_transit().mm3::<f64>() / m.bead_area;
     // B pushed through a channel of A flows faster than the 10 mm/s the G-code moves at,
     // so the late boundary lands somewhat less than L_adv along.

@@ -46,7 +46,9 @@ pub struct Fill {
     pub prime_mm: f64,
 }
 
-fn um(mm: f64) -> i32 {
+/// Millimetres to the jobs' integer micrometres, rounded to the nearest (saturating at
+/// the `i32` range): the one conversion the designs, the slicer and the G-code import use.
+pub fn um(mm: f64) -> i32 {
     (mm * 1000.0).round() as i32
 }
 

@@ -10,7 +10,7 @@ pub mod pause;
 pub mod plant;
 pub mod run;
 
-pub use designs::Job;
+pub use designs::{um, Job};
 pub use metrics::Metrics;
 pub use pause::{ParkRecord, PausePlan, PauseRecord};
 pub use run::{run, run_paused, run_with_plant, Cycle, RunOptions, RunResult, SimError};

@@ -3,6 +3,7 @@
 //! cycle, and volume deposited off the path. Fed cycle by cycle by the runner; knows
 //! nothing of how the run was produced.
 
+use dollop::command::{walk, MoveKind};
 use dollop::Command;
 
 /// The design's beads: for each polyline, its command range and material runs.
@@ -18,37 +19,38 @@ pub struct DesignBead {
 /// Splits a job into beads.
 pub fn design_beads(commands: &[Command], start_um: [i32; 3]) -> Vec<DesignBead> {
     let mut beads = Vec::new();
-    let mut pos = [start_um[0] as i64, start_um[1] as i64];
     let mut cur: Option<DesignBead> = None;
-    for (i, c) in commands.iter().enumerate() {
-        match *c {
-            Command::Print { dx, dy, material } => {
-                if dx == 0 && dy == 0 {
-                    continue;
+    // The walk yields no dwell or end; a gap in the command indices is one, and ends a
+    // bead as a travel or a layer change does.
+    let mut next_index = 0;
+    for m in walk(commands, start_um) {
+        let contiguous = m.index == next_index;
+        next_index = m.index + 1;
+        if !contiguous {
+            beads.extend(cur.take());
+        }
+        let MoveKind::Print { material } = m.kind else {
+            beads.extend(cur.take());
+            continue;
+        };
+        if m.from == m.to {
+            continue;
+        }
+        let i = m.index as u32;
+        let here = [m.from[0] as f64 * 1e-3, m.from[1] as f64 * 1e-3];
+        match cur.as_mut() {
+            Some(b) => {
+                b.commands.1 = i;
+                if b.runs.last().map(|r| r.1) != Some(material) {
+                    b.runs.push((here, material));
                 }
-                let here = [pos[0] as f64 * 1e-3, pos[1] as f64 * 1e-3];
-                match cur.as_mut() {
-                    Some(b) => {
-                        b.commands.1 = i as u32;
-                        if b.runs.last().map(|r| r.1) != Some(material) {
-                            b.runs.push((here, material));
-                        }
-                    }
-                    None => {
-                        cur = Some(DesignBead {
-                            commands: (i as u32, i as u32),
-                            runs: vec![(here, material)],
-                        })
-                    }
-                }
-                pos[0] += dx as i64;
-                pos[1] += dy as i64;
             }
-            Command::Travel { x, y, .. } => {
-                beads.extend(cur.take());
-                pos = [x as i64, y as i64];
+            None => {
+                cur = Some(DesignBead {
+                    commands: (i, i),
+                    runs: vec![(here, material)],
+                })
             }
-            _ => beads.extend(cur.take()),
         }
     }
     beads.extend(cur.take());

@@ -3,13 +3,13 @@
 //! machine config, turns the fit into the material's effective rheology in this channel
 //! and the pressure that prints the configured bead. Plotting is delegated to `plot`.
 
+use super::error::{CalError, CalOption, OptionError};
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, short, sig, toml_float, toml_string};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::rheology::rheology_toml;
 use super::table::{Bound, Limits, Table};
-use super::CalError;
 use dollop::config::{Config, MATERIAL_NAME_LEN};
 use dollop::rheology::Rheology;
 use std::f64::consts::PI;
@@ -205,25 +205,24 @@ pub fn calibrate_table(table: &Table, options: &Options) -> Result<Calibration, 
     ) {
         (Some(u), _) | (None, Some(u)) => u,
         (None, None) => {
-            return Err(CalError::Unclear {
+            return Err(CalError::RateUnitUnclear {
                 path: table.path.clone(),
-                message: "the flow column's unit is not in its header (mm3/s, ul/s, ml/min, \
-                          mg/s, g/s, g/min); say --rate-unit"
-                    .into(),
             })
         }
     };
     let to_mm3 = if unit.is_mass() {
         match options.density_g_ml {
             Some(rho) if rho > 0.0 && rho.is_finite() => unit.factor() / rho,
-            Some(rho) => return Err(CalError::arg(format!("--density {rho} must be above zero"))),
+            Some(rho) => {
+                return Err(CalError::Option(OptionError::NotPositive {
+                    option: CalOption::Density,
+                    value: rho,
+                }))
+            }
             None => {
-                return Err(CalError::Unclear {
+                return Err(CalError::NeedsDensity {
                     path: table.path.clone(),
-                    message: format!(
-                        "flows are in {}: say --density G_PER_ML to turn them into volume",
-                        unit.name()
-                    ),
+                    unit: unit.name(),
                 })
             }
         }
@@ -539,7 +538,7 @@ impl Calibration {
     }
 
     /// Flow against pressure, log-log, each material with its supported law.
-    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut StagedFiles) -> Result<(), CalError> {
         let mut panel = Panel {
             title: "flow against supply pressure".into(),
             x_label: "pressure (kPa)".into(),

@@ -11,7 +11,7 @@
 
 use super::fit::{self, Estimate, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, sig, toml_float};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::table::{Bound, Limits, Table};
 use super::CalError;
@@ -514,7 +514,7 @@ impl Calibration {
     }
 
     /// Data, Weibull fit and the valve model over the mass residuals.
-    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut StagedFiles) -> Result<(), CalError> {
         let (scale, unit) = match self.unit {
             TimeUnit::S => (1.0, "s"),
             TimeUnit::Ms => (1e3, "ms"),

@@ -16,4 +16,4 @@ pub mod savgol;
 pub mod syringe;
 pub mod table;
 
-pub use error::CalError;
+pub use error::{CalError, CalOption, OptionError};

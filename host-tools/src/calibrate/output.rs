@@ -4,7 +4,7 @@
 //! calibration needs. What goes into the files is decided elsewhere.
 
 use super::CalError;
-pub use crate::slicer::output::Outputs;
+pub use crate::slicer::output::StagedFiles;
 use dollop::config::Config;
 use std::path::Path;
 
@@ -20,7 +20,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CalError> {
 }
 
 /// Stages `bytes` for `path` in `out` (renamed into place when `out` is committed).
-pub fn stage(out: &mut Outputs, path: &Path, bytes: &[u8]) -> Result<(), CalError> {
+pub fn stage(out: &mut StagedFiles, path: &Path, bytes: &[u8]) -> Result<(), CalError> {
     out.stage(path, |w| w.write_all(bytes))
         .map_err(|source| CalError::Write {
             path: path.to_path_buf(),
@@ -29,7 +29,7 @@ pub fn stage(out: &mut Outputs, path: &Path, bytes: &[u8]) -> Result<(), CalErro
 }
 
 /// Renames everything staged in `out` into place; on failure names the output.
-pub fn commit(out: Outputs) -> Result<(), CalError> {
+pub fn commit(out: StagedFiles) -> Result<(), CalError> {
     out.commit()
         .map_err(|(path, source)| CalError::Write { path, source })
 }

@@ -3,7 +3,7 @@
 //! binary (Ubuntu Light from `epaint_default_fonts`), so plots need no system fonts.
 //! Which series to draw is each calibration's business.
 
-use super::output::{self, Outputs};
+use super::output::{self, StagedFiles};
 use super::CalError;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -130,7 +130,7 @@ pub fn render(
     panels: &[Panel],
     width: u32,
     height_per_panel: u32,
-    out: &mut Outputs,
+    out: &mut StagedFiles,
 ) -> Result<(), CalError> {
     register_font();
     let height = height_per_panel * panels.len().max(1) as u32;

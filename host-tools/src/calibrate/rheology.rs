@@ -5,7 +5,7 @@
 
 use super::fit::{self, Fit, FitOptions, Model, Param, Scale, Space};
 use super::format::{estimate, log_rms, sig, toml_float};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::table::{Bound, Limits, Table};
 use super::CalError;
@@ -301,13 +301,9 @@ pub fn calibrate_table(table: &Table, options: Options) -> Result<Calibration, C
         (None, Some(k)) => (k, "the header"),
         (None, None) if table.header.is_none() => (Kind::Rotational, "default (no header)"),
         (None, None) => {
-            return Err(CalError::Unclear {
+            return Err(CalError::KindUnclear {
                 path: table.path.clone(),
-                message: format!(
-                    "cannot tell from the header {:?} whether this is a rotational or an \
-                     oscillatory test; say --kind rotational or --kind oscillatory",
-                    table.header_of(0).unwrap_or("")
-                ),
+                header: table.header_of(0).unwrap_or("").to_string(),
             })
         }
     };
@@ -589,7 +585,7 @@ impl Calibration {
     }
 
     /// Data and fits (log-log) over relative residuals.
-    pub fn plot(&self, path: &Path, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, out: &mut StagedFiles) -> Result<(), CalError> {
         let (xn, yn) = match self.kind {
             Kind::Rotational => ("shear rate (1/s)", "shear stress (Pa)"),
             Kind::Oscillatory => ("angular frequency (rad/s)", "|G*| (Pa)"),

@@ -3,6 +3,7 @@
 //! width `a = sqrt(4 / (pi c)) sqrt(Q / v)` it lays at a print speed, and the `syringe`
 //! table of the config (with the lag from a `calibrate lag` fit or documented defaults).
 
+use super::error::{positive, CalOption, OptionError};
 use super::format::{sig, toml_float};
 use super::lag::Weibull;
 use super::CalError;
@@ -108,63 +109,44 @@ pub fn line_width(q_mm3_s: f64, v_mm_s: f64, c: f64) -> f64 {
     (4.0 / (PI * c)).sqrt() * (q_mm3_s / v_mm_s).sqrt()
 }
 
-fn positive(name: &str, v: f64) -> Result<f64, CalError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(CalError::arg(format!("{name} {v} must be above zero")))
-    }
-}
-
 /// Computes the calibration.
 pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
     let geometric = match (o.diameter_mm, o.lead_mm) {
         (Some(d), Some(lead)) => {
-            let d = positive("--diameter", d)?;
-            let lead = positive("--lead", lead)?;
-            let spr = positive("--steps-per-rev", o.steps_per_rev)?;
-            let micro = positive("--microsteps", o.microsteps)?;
-            let gear = positive("--gear-ratio", o.gear_ratio)?;
+            let d = positive(CalOption::Diameter, d)?;
+            let lead = positive(CalOption::Lead, lead)?;
+            let spr = positive(CalOption::StepsPerRev, o.steps_per_rev)?;
+            let micro = positive(CalOption::Microsteps, o.microsteps)?;
+            let gear = positive(CalOption::GearRatio, o.gear_ratio)?;
             let steps_per_mm = spr * micro * gear / lead;
             Some(steps_per_mm / (PI * d * d / 4.0))
         }
         (None, None) => None,
-        _ => {
-            return Err(CalError::arg(
-                "--diameter and --lead go together (syringe bore and lead screw)",
-            ))
-        }
+        _ => return Err(CalError::Option(OptionError::HalfGeometry)),
     };
     let measured = match (o.mg_per_step, o.density_g_ml) {
         (Some(mg), Some(rho)) => {
-            let mg = positive("--mg-per-step", mg)?;
-            let rho = positive("--density", rho)?;
+            let mg = positive(CalOption::MgPerStep, mg)?;
+            let rho = positive(CalOption::Density, rho)?;
             // rho g/ml = rho mg/mm^3.
             Some(rho / mg)
         }
         (None, None) => None,
-        (Some(_), None) => {
-            return Err(CalError::arg(
-                "--mg-per-step needs --density (g/ml) to become a volume",
-            ))
-        }
+        (Some(_), None) => return Err(CalError::Option(OptionError::MassWithoutDensity)),
         (None, Some(_)) => None,
     };
-    let steps_per_mm3 = measured.or(geometric).ok_or_else(|| {
-        CalError::arg(
-            "give the syringe geometry (--diameter and --lead) or a measurement \
-             (--mg-per-step and --density)",
-        )
-    })?;
+    let steps_per_mm3 = measured
+        .or(geometric)
+        .ok_or(CalError::Option(OptionError::NoSyringeScale))?;
     if steps_per_mm3 > 1e6 {
         return Err(CalError::arg(format!(
             "{} steps/mm^3 is above the 1e6 the core accepts",
             sig(steps_per_mm3, 3)
         )));
     }
-    let c = positive("--shape", o.shape_c)?;
+    let c = positive(CalOption::Shape, o.shape_c)?;
     let speed = match (o.speed_mm_s, &o.config) {
-        (Some(v), _) => Some(positive("--speed", v)?),
+        (Some(v), _) => Some(positive(CalOption::Speed, v)?),
         (None, Some(cfg)) => Some(cfg.motion.print_speed_mm_s as f64),
         _ => None,
     };
@@ -176,8 +158,8 @@ pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
             })
     });
     let q = match (o.flow_mm3_s, o.step_rate_hz) {
-        (Some(q), _) => Some(positive("--flow", q)?),
-        (None, Some(r)) => Some(positive("--step-rate", r)? / steps_per_mm3),
+        (Some(q), _) => Some(positive(CalOption::Flow, q)?),
+        (None, Some(r)) => Some(positive(CalOption::StepRate, r)? / steps_per_mm3),
         (None, None) => bead.zip(speed).map(|(s, v)| s * v),
     };
     let line = q.zip(speed).map(|(q, v)| Line {

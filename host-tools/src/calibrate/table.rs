@@ -3,6 +3,7 @@
 //! hands out checked numeric or text columns. What the columns mean is each calibration's
 //! business.
 
+use super::error::CalOption;
 use super::CalError;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
@@ -81,7 +82,7 @@ impl Table {
                 limits.max_mib,
                 mib(bytes.saturating_sub(max_bytes))
             ),
-            option: "--max-csv-mb",
+            option: CalOption::MaxCsvMb,
         };
         let file = std::fs::File::open(path).map_err(read_err)?;
         let len = file.metadata().map_err(read_err)?.len();
@@ -141,7 +142,7 @@ impl Table {
                     "{} data rows, over the limit of {max_rows} by {extra}",
                     max_rows + extra
                 ),
-                option: "--max-rows",
+                option: CalOption::MaxRows,
             });
         }
         Ok(Table {

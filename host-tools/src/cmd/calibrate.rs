@@ -7,9 +7,9 @@ use crate::calibrate::camera::frames;
 use crate::calibrate::camera::{parse_roi, parse_window};
 use crate::calibrate::flow::RateUnit;
 use crate::calibrate::lag::{InletKind, TimeUnit};
-use crate::calibrate::output::{self, load_config, Outputs};
+use crate::calibrate::output::{self, load_config, StagedFiles};
 use crate::calibrate::rheology::Kind;
-use crate::calibrate::{camera, flow, lag, rheology, syringe, table, CalError};
+use crate::calibrate::{camera, flow, lag, rheology, syringe, table, CalError, CalOption};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -255,7 +255,55 @@ fn in_flags(e: CalError) -> CalError {
         } => CalError::arg(format!(
             "--roi leaves {w}x{h} px of the {frame_w}x{frame_h} frames; at least {min}x{min} are needed"
         )),
+        CalError::Option(o) => CalError::arg(o.message(flag)),
+        CalError::OverLimit { path, what, option } => CalError::arg(format!(
+            "{}: {what}; raise the limit with {} if this input is right",
+            path.display(),
+            flag(option)
+        )),
+        CalError::NeedsDensity { path, unit } => CalError::Unclear {
+            path,
+            message: format!("flows are in {unit}: say --density G_PER_ML to turn them into volume"),
+        },
+        CalError::KindUnclear { path, header } => CalError::Unclear {
+            path,
+            message: format!(
+                "cannot tell from the header {header:?} whether this is a rotational or an \
+                 oscillatory test; say --kind rotational or --kind oscillatory"
+            ),
+        },
+        CalError::RateUnitUnclear { path } => CalError::Unclear {
+            path,
+            message: "the flow column's unit is not in its header (mm3/s, ul/s, ml/min, \
+                      mg/s, g/s, g/min); say --rate-unit"
+                .into(),
+        },
         other => other,
+    }
+}
+
+/// The flag that gives `o`.
+fn flag(o: CalOption) -> &'static str {
+    match o {
+        CalOption::Diameter => "--diameter",
+        CalOption::Lead => "--lead",
+        CalOption::StepsPerRev => "--steps-per-rev",
+        CalOption::Microsteps => "--microsteps",
+        CalOption::GearRatio => "--gear-ratio",
+        CalOption::MgPerStep => "--mg-per-step",
+        CalOption::Density => "--density",
+        CalOption::Shape => "--shape",
+        CalOption::Speed => "--speed",
+        CalOption::Flow => "--flow",
+        CalOption::StepRate => "--step-rate",
+        CalOption::Fps => "--fps",
+        CalOption::MmPerPx => "--mm-per-px",
+        CalOption::TargetWidth => "--target-width",
+        CalOption::NozzleDiameter => "--nozzle-diameter",
+        CalOption::MaxFrames => "--max-frames",
+        CalOption::MaxPixels => "--max-pixels",
+        CalOption::MaxCsvMb => "--max-csv-mb",
+        CalOption::MaxRows => "--max-rows",
     }
 }
 
@@ -435,7 +483,7 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
         ..
     } = p;
     // Fragment and plot are staged, then renamed together: a failure on one leaves neither.
-    let mut staged = Outputs::new();
+    let mut staged = StagedFiles::new();
     if let Some(path) = &output.out {
         let f = fragment.ok_or_else(|| {
             CalError::arg(format!(
@@ -455,4 +503,4 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
     Ok(())
 }
 
-type Plotter = Box<dyn FnOnce(&Path, &mut Outputs) -> Result<(), CalError>>;
+type Plotter = Box<dyn FnOnce(&Path, &mut StagedFiles) -> Result<(), CalError>>;

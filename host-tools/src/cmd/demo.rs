@@ -149,7 +149,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         &config,
         &job,
         true,
-        simulate::Outputs {
+        simulate::Recording {
             trace: None,
             heatmap: Some(&mut heat),
             progress: true,
@@ -160,7 +160,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let wall = t.elapsed();
     heat.mark_boundaries(&result.metrics.boundaries);
     let plate_path = dir.join(format!("{name}-plate.png"));
-    let mut staged = output::Outputs::new();
+    let mut staged = output::StagedFiles::new();
     output::stage(&mut staged, &machine_path, |w| {
         w.write_all(MACHINE.as_bytes())
     })?;

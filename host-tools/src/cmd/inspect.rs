@@ -90,7 +90,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|i| i.material.to_string())
         .collect();
     print!("{}", ins.report(&names));
-    let mut staged = output::Outputs::new();
+    let mut staged = output::StagedFiles::new();
     let mut written_out = a.out.is_some();
     if a.suggest {
         let job = dollop_sim::Job {

@@ -2,7 +2,7 @@
 //! virtual time, writes the CSV trace and the plate heatmap, prints the report), and its
 //! errors onto the flag names.
 
-use crate::simulate::{report_text, simulate_job, warnings, Bounds, Heatmap, Outputs};
+use crate::simulate::{report_text, simulate_job, warnings, Bounds, Heatmap, Recording};
 use crate::slicer::{self, output};
 use anyhow::Context;
 use dollop_sim::{Job, PausePlan};
@@ -118,8 +118,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
     // Trace and heatmap are staged and renamed together at the end: an interrupted or
     // failed run leaves neither (Ctrl-C removes the temporary files).
-    let mut staged = output::Outputs::new();
-    let run_it = |out: Outputs<'_>| {
+    let mut staged = output::StagedFiles::new();
+    let run_it = |out: Recording<'_>| {
         simulate_job(&config, &job, plant, out).with_context(|| job_name.clone())
     };
 
@@ -128,7 +128,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let mut res = None;
             let mut failure = None;
             output::stage(&mut staged, path, |w| {
-                match run_it(Outputs {
+                match run_it(Recording {
                     trace: Some(w),
                     heatmap: heat.as_mut(),
                     progress: true,
@@ -151,7 +151,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             })?;
             res.context("simulation produced no result")?
         }
-        None => run_it(Outputs {
+        None => run_it(Recording {
             trace: None,
             heatmap: heat.as_mut(),
             progress: true,

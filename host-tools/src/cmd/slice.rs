@@ -366,55 +366,7 @@ fn finish(
     let gcode = a
         .gcode
         .as_ref()
-        .map(|_| {
-            let names: Vec<String> = config
-                .inlets
-                .iter()
-                .map(|i| i.material.to_string())
-                .collect();
-            let style = match req.gcode.style.profile() {
-                Some(style) => style,
-                None => {
-                    let opt = RunExport {
-                        dialect: req.gcode.dialect(config.inlets.len())?,
-                        max_bytes: req.gcode.max_bytes,
-                        host: host.clone(),
-                        ..RunExport::default()
-                    };
-                    // The executor runs the whole job: minutes for a day-long print.
-                    let bar = output::progress(sliced.commands.len() as u64, "writing G-code");
-                    let r = gcode_exec::export_with_progress(
-                        &config,
-                        &sliced.commands,
-                        sliced.header.start_um,
-                        sliced.header.initial_material,
-                        &names,
-                        &opt,
-                        &mut |done| bar.set_position(done),
-                    );
-                    bar.finish_and_clear();
-                    return r;
-                }
-            };
-            if req.gcode.dialect != Kind::Plain
-                || req.gcode.ports.is_some()
-                || host.start.is_some()
-                || host.end.is_some()
-            {
-                return Err(SliceError::Option(format!(
-                    "--gcode-dialect, --gcode-ports, --gcode-start and --gcode-end apply to --gcode-style run, not {}",
-                    req.gcode.style.name()
-                )));
-            }
-            gcode::export(
-                &sliced.commands,
-                sliced.header.start_um,
-                sliced.header.initial_material,
-                &machine,
-                &names,
-                style,
-            )
-        })
+        .map(|_| gcode_text(req, &host, &config, &machine, &sliced))
         .transpose()
         .map_err(flagged)?;
     let out = a.out.clone().unwrap_or_else(|| match a.designs.first() {
@@ -424,7 +376,7 @@ fn finish(
     // Every output is staged (written whole to a temporary file beside it) before any is
     // renamed into place: a failure on one (a missing folder, a FIFO at the path) leaves
     // none of them.
-    let mut staged = output::Outputs::new();
+    let mut staged = output::StagedFiles::new();
     let job_bytes = sliced.to_bytes();
     output::stage(&mut staged, &out, |w| w.write_all(&job_bytes))?;
     if let (Some(path), Some((text, _))) = (&a.gcode, &gcode) {
@@ -507,6 +459,64 @@ fn finish(
         println!("wrote {}{}", path.display(), replaced(path));
     }
     Ok(())
+}
+
+/// The G-code `--gcode` asks for: from the executor's run (`--gcode-style run`) or the
+/// older feed-rate profiles.
+fn gcode_text(
+    req: &SliceRequest,
+    host: &gcode_dialect::HostText,
+    config: &dollop::config::Config,
+    machine: &dollop::Machine<f64, 4>,
+    sliced: &slicer::Sliced,
+) -> Result<(String, gcode::GcodeStats), SliceError> {
+    let names: Vec<String> = config
+        .inlets
+        .iter()
+        .map(|i| i.material.to_string())
+        .collect();
+    let style = match req.gcode.style.profile() {
+        Some(style) => style,
+        None => {
+            let opt = RunExport {
+                dialect: req.gcode.dialect(config.inlets.len())?,
+                max_bytes: req.gcode.max_bytes,
+                host: host.clone(),
+                ..RunExport::default()
+            };
+            // The executor runs the whole job: minutes for a day-long print.
+            let bar = output::progress(sliced.commands.len() as u64, "writing G-code");
+            let r = gcode_exec::export_with_progress(
+                config,
+                &sliced.commands,
+                sliced.header.start_um,
+                sliced.header.initial_material,
+                &names,
+                &opt,
+                &mut |done| bar.set_position(done),
+            );
+            bar.finish_and_clear();
+            return r;
+        }
+    };
+    if req.gcode.dialect != Kind::Plain
+        || req.gcode.ports.is_some()
+        || host.start.is_some()
+        || host.end.is_some()
+    {
+        return Err(SliceError::Option(format!(
+            "--gcode-dialect, --gcode-ports, --gcode-start and --gcode-end apply to --gcode-style run, not {}",
+            req.gcode.style.name()
+        )));
+    }
+    gcode::export(
+        &sliced.commands,
+        sliced.header.start_um,
+        sliced.header.initial_material,
+        machine,
+        &names,
+        style,
+    )
 }
 
 /// An image sliced without a size: one pixel per line pitch, often not what was meant.

@@ -7,10 +7,8 @@
 use super::error::GcodeInError;
 use dollop::Command;
 
-/// Millimetres to micrometres (inputs are range-checked before they get here).
-fn um(mm: f64) -> i32 {
-    (mm * 1000.0).round() as i32
-}
+// Millimetres to micrometres (inputs are range-checked before they get here).
+use dollop_sim::um;
 
 /// Limits on what the import makes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

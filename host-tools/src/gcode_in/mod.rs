@@ -24,6 +24,7 @@ use crate::slicer::toolpath::{transit_mm, PathStats};
 use crate::slicer::{job_file, Sliced};
 use dollop::config::Config;
 use dollop::Machine;
+use dollop_sim::um;
 use emit::{BodyStats, CountLimits};
 use modal::{Counts, Modal, Settings};
 use std::fmt;
@@ -240,8 +241,7 @@ pub fn import_text(
         let s = [um(p.start_mm[0]), um(p.start_mm[1]), um(p.start_mm[2])];
         (s, um(p.start_mm[0] + p.len_mm))
     }));
-    let job_body = job_file::encode_body(&commands);
-    let header = job_file::header_for(&commands, &job_body, start_um, material, config);
+    let (header, job_body) = job_file::encode(&commands, start_um, material, config);
     let prime_mm = prime.map_or(0.0, |p| p.len_mm);
     let stats = PathStats {
         layers: body.layers as usize,
@@ -271,10 +271,6 @@ pub fn import_text(
             purge_mm3,
         },
     })
-}
-
-fn um(mm: f64) -> i32 {
-    (mm * 1000.0).round() as i32
 }
 
 /// The priming bead: along +X from the part's left edge, a gap below the part (above it

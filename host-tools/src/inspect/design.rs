@@ -4,6 +4,7 @@
 //! Reading the photo is the other modules' business.
 
 pub use crate::slicer::markers::Marker;
+use dollop::command::{walk, MoveKind};
 use dollop::Command;
 
 /// One bead of the design: its centre line and where its material changes.
@@ -119,42 +120,39 @@ impl Plan {
 /// corners the executor rounds to `corner_radius` mm.
 pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius: f64) -> Plan {
     let mut beads: Vec<(i64, Bead)> = Vec::new();
-    let mut pos = [start_um[0] as i64, start_um[1] as i64];
-    let mut z = start_um[2] as i64;
     let mut cur: Option<Bead> = None;
-    let mm = |p: [i64; 2]| [p[0] as f64 * 1e-3, p[1] as f64 * 1e-3];
-    for c in commands {
-        match *c {
-            Command::Print { dx, dy, material } => {
-                if dx == 0 && dy == 0 {
-                    continue;
-                }
-                let b = cur.get_or_insert_with(|| Bead {
-                    points: vec![mm(pos)],
-                    s: vec![0.0],
-                    runs: vec![(0.0, material)],
-                    turns: Vec::new(),
-                });
-                let s0 = b.length();
-                if b.runs.last().map(|r| r.1) != Some(material) {
-                    b.runs.push((s0, material));
-                }
-                pos = [pos[0] + dx as i64, pos[1] + dy as i64];
-                let len = ((dx as f64).hypot(dy as f64)) * 1e-3;
-                b.points.push(mm(pos));
-                b.s.push(s0 + len);
-            }
-            Command::Travel { x, y, z: nz } => {
-                beads.extend(cur.take().map(|b| (z, b)));
-                pos = [x as i64, y as i64];
-                z = nz as i64;
-            }
-            Command::Layer { z: nz } => {
-                beads.extend(cur.take().map(|b| (z, b)));
-                z = nz as i64;
-            }
-            Command::Dwell { .. } | Command::End => beads.extend(cur.take().map(|b| (z, b))),
+    let mm = |p: [i32; 3]| [p[0] as f64 * 1e-3, p[1] as f64 * 1e-3];
+    // The walk yields no dwell or end; a gap in the command indices is one, and ends a
+    // bead as a travel or a layer change does.
+    let (mut next_index, mut z) = (0, start_um[2] as i64);
+    for m in walk(commands, start_um) {
+        let contiguous = m.index == next_index;
+        next_index = m.index + 1;
+        z = m.to[2] as i64;
+        let MoveKind::Print { material } = m.kind else {
+            beads.extend(cur.take().map(|b| (m.from[2] as i64, b)));
+            continue;
+        };
+        if !contiguous {
+            beads.extend(cur.take().map(|b| (z, b)));
         }
+        if m.from == m.to {
+            continue;
+        }
+        let b = cur.get_or_insert_with(|| Bead {
+            points: vec![mm(m.from)],
+            s: vec![0.0],
+            runs: vec![(0.0, material)],
+            turns: Vec::new(),
+        });
+        let s0 = b.length();
+        if b.runs.last().map(|r| r.1) != Some(material) {
+            b.runs.push((s0, material));
+        }
+        let [dx, dy] = [m.to[0] - m.from[0], m.to[1] - m.from[1]];
+        let len = ((dx as f64).hypot(dy as f64)) * 1e-3;
+        b.points.push(mm(m.to));
+        b.s.push(s0 + len);
     }
     beads.extend(cur.take().map(|b| (z, b)));
     let mut zs: Vec<i64> = beads.iter().map(|b| b.0).collect();

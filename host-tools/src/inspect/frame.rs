@@ -6,7 +6,7 @@
 /// The design's frame as an image: `px_per_mm` pixels a millimetre, `margin_mm` around
 /// the footprint from `lo` to `hi`, image y running down (design y up).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frame {
+pub struct DesignFrame {
     /// Lower-left of the footprint, mm.
     pub lo: [f64; 2],
     /// Upper-right of the footprint, mm.
@@ -17,7 +17,7 @@ pub struct Frame {
     pub margin_mm: f64,
 }
 
-impl Frame {
+impl DesignFrame {
     /// Image size, px.
     pub fn size(&self) -> (u32, u32) {
         let w = (self.hi[0] - self.lo[0] + 2.0 * self.margin_mm) * self.px_per_mm;

@@ -7,12 +7,12 @@
 //! print's outline is `register`'s.
 
 use super::design::{Marker, Plan};
-use super::frame::Frame;
+use super::frame::DesignFrame;
 use super::photo::{Blob, Photo};
 use imageproc::geometric_transformations::Projection;
 
 /// Frame pixel to design point, mm.
-fn to_mm(frame: &Frame, q: [f64; 2]) -> [f64; 2] {
+fn to_mm(frame: &DesignFrame, q: [f64; 2]) -> [f64; 2] {
     [
         q[0] / frame.px_per_mm - frame.margin_mm + frame.lo[0],
         frame.hi[1] + frame.margin_mm - q[1] / frame.px_per_mm,
@@ -77,7 +77,7 @@ fn around(pts: &[[f64; 2]; 4], first: usize) -> [usize; 4] {
 /// The photo's positions of the footprint's corners (`frame.corners()` order, no turn
 /// left to decide), registered by the markers; `None` when the plan has no markers or the
 /// photo does not show four regions that look like them.
-pub fn register(photo: &Photo, plan: &Plan, frame: &Frame) -> Option<[[f64; 2]; 4]> {
+pub fn register(photo: &Photo, plan: &Plan, frame: &DesignFrame) -> Option<[[f64; 2]; 4]> {
     let markers = plan.markers?;
     let pitch = plan.pitch;
     // Photo pixels per mm^2, from the print's area against the design's.
@@ -183,7 +183,7 @@ fn leg_corner(
     m: &Marker,
     blob: &Blob,
     proj: &Projection,
-    frame: &Frame,
+    frame: &DesignFrame,
     pitch: f64,
 ) -> Option<[f64; 2]> {
     let u = [m.dir(0), m.dir(1)];

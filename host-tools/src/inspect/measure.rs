@@ -5,13 +5,21 @@
 
 use super::classify::PLATE;
 use super::design::{Bead, Plan};
-use super::frame::Frame;
+use super::frame::DesignFrame;
 
 /// Paints material `m` into `px` (frame pixels) where a bead of half-width `r_mm` covers
 /// it: the strip across the path from `a` to `b` (mm), or with `disk` the disk about `a`.
 /// Paste lands under the nozzle and stays, so a stretch of path paints only the strip
 /// across it: a disk's front half would paint paste ahead of the nozzle.
-pub fn stamp(px: &mut [u8], frame: &Frame, a: [f64; 2], b: [f64; 2], r_mm: f64, m: u8, disk: bool) {
+pub fn stamp(
+    px: &mut [u8],
+    frame: &DesignFrame,
+    a: [f64; 2],
+    b: [f64; 2],
+    r_mm: f64,
+    m: u8,
+    disk: bool,
+) {
     let (w, h) = frame.size();
     let (qa, qb) = (frame.to_px(a), frame.to_px(b));
     let r = r_mm * frame.px_per_mm;
@@ -45,7 +53,7 @@ pub fn stamp(px: &mut [u8], frame: &Frame, a: [f64; 2], b: [f64; 2], r_mm: f64, 
 
 /// The design as frame pixels: the material whose bead covers each pixel, `PLATE` where
 /// none does. Beads are `pitch` wide with round ends, painted as the nozzle lays them.
-pub fn paint(plan: &Plan, frame: &Frame) -> Vec<u8> {
+pub fn paint(plan: &Plan, frame: &DesignFrame) -> Vec<u8> {
     let (w, h) = frame.size();
     let mut img = vec![PLATE; (w * h) as usize];
     let r = plan.pitch / 2.0;
@@ -116,7 +124,7 @@ pub struct Found {
 pub fn half_width_between_turns(
     bead: &Bead,
     (a, b): (f64, f64),
-    frame: &Frame,
+    frame: &DesignFrame,
     seen: &[u8],
     pitch: f64,
 ) -> f64 {
@@ -142,7 +150,7 @@ pub fn half_width_between_turns(
 pub const MAX_TURN_HALF_WIDTH: f64 = 0.7;
 
 /// The label seen at design point `p` (mm), `PLATE` outside the frame.
-fn label_at(seen: &[u8], frame: &Frame, p: [f64; 2]) -> u8 {
+fn label_at(seen: &[u8], frame: &DesignFrame, p: [f64; 2]) -> u8 {
     let (w, h) = frame.size();
     let c = frame.to_px(p);
     let (x, y) = (c[0].floor(), c[1].floor());
@@ -156,7 +164,7 @@ fn label_at(seen: &[u8], frame: &Frame, p: [f64; 2]) -> u8 {
 /// across the bead, the majority counted).
 fn along(
     plan: &Plan,
-    frame: &Frame,
+    frame: &DesignFrame,
     seen: &[u8],
     bead: usize,
     s0: f64,
@@ -226,7 +234,7 @@ pub const MAX_SHIFT_MM: f64 = 4.0;
 /// shifted place. A boundary whose best step explains less than 70 % of its samples, or
 /// that lands on the short stretch between two rows where the bead is wider than
 /// `MAX_TURN_HALF_WIDTH` allows, is not found (left out).
-pub fn boundaries(plan: &Plan, frame: &Frame, seen: &[u8]) -> Vec<Found> {
+pub fn boundaries(plan: &Plan, frame: &DesignFrame, seen: &[u8]) -> Vec<Found> {
     let step = 0.5 / frame.px_per_mm;
     let mut kinds: Vec<(u8, u8)> = plan.boundaries.iter().map(|b| (b.from, b.to)).collect();
     kinds.sort_unstable();
@@ -314,7 +322,12 @@ pub fn boundaries(plan: &Plan, frame: &Frame, seen: &[u8]) -> Vec<Found> {
 /// the centre line, perpendicular to it. Where neighbouring beads touch, the run would
 /// span them, so it is cut at 0.75 pitch each side: widths at or over 1.5 pitch say only
 /// "touching". Samples within a pitch of a bead end are skipped.
-pub fn widths(plan: &Plan, frame: &Frame, seen: &[u8], every_mm: f64) -> Vec<(usize, f64, f64)> {
+pub fn widths(
+    plan: &Plan,
+    frame: &DesignFrame,
+    seen: &[u8],
+    every_mm: f64,
+) -> Vec<(usize, f64, f64)> {
     let step = 0.25 / frame.px_per_mm;
     let reach = 0.75 * plan.pitch;
     let mut out = Vec::new();
@@ -333,7 +346,14 @@ pub fn widths(plan: &Plan, frame: &Frame, seen: &[u8], every_mm: f64) -> Vec<(us
     out
 }
 
-fn width_at(bead: &Bead, s: f64, frame: &Frame, seen: &[u8], step: f64, reach: f64) -> Option<f64> {
+fn width_at(
+    bead: &Bead,
+    s: f64,
+    frame: &DesignFrame,
+    seen: &[u8],
+    step: f64,
+    reach: f64,
+) -> Option<f64> {
     let (p, u) = bead.at(s);
     let n = [-u[1], u[0]];
     if label_at(seen, frame, p) == PLATE {
@@ -452,7 +472,13 @@ pub struct Edge {
 /// wider or narrower than its pitch moves both sides alike, so not its middle.
 /// Along-path offsets cannot see a misregistration across the rows, which these can: rows
 /// that all run along x leave y to them.
-pub fn edges(plan: &Plan, frame: &Frame, design: &[u8], seen: &[u8], every_mm: f64) -> Vec<Edge> {
+pub fn edges(
+    plan: &Plan,
+    frame: &DesignFrame,
+    design: &[u8],
+    seen: &[u8],
+    every_mm: f64,
+) -> Vec<Edge> {
     let step = 0.25 / frame.px_per_mm;
     let reach = 0.75 * plan.pitch;
     let mut out = Vec::new();

@@ -22,7 +22,7 @@ pub use error::InspectError;
 
 use design::Plan;
 use dollop::Command;
-use frame::Frame;
+use frame::DesignFrame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -110,7 +110,7 @@ pub struct Inspection {
     /// The plan it was compared with.
     pub plan: Plan,
     /// The frame it was rectified into.
-    pub frame: Frame,
+    pub frame: DesignFrame,
     /// Per frame pixel: the material the photo shows, or `PLATE`.
     pub seen: Vec<u8>,
     /// Per frame pixel: the design's material, or `PLATE`.
@@ -188,6 +188,15 @@ impl Inspection {
                 .unwrap_or_else(|| format!("material {m}"))
         };
         let mut s = String::new();
+        self.report_registration(&mut s, &name);
+        self.report_boundaries(&mut s, &name);
+        self.report_widths(&mut s, &name);
+        s
+    }
+
+    /// Where the print was found, how it was registered, the photo's resolution and
+    /// colours, and the pattern error.
+    fn report_registration(&self, s: &mut String, name: &dyn Fn(u8) -> String) {
         let _ = writeln!(
             s,
             "print found: corners at ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) ({:.0}, {:.0}) px; {} quarter turn(s) to the design",
@@ -233,6 +242,10 @@ impl Inspection {
             100.0 * self.pattern_error,
             100.0 * self.unexplained
         );
+    }
+
+    /// The boundaries found and their offsets along the path, per switch.
+    fn report_boundaries(&self, s: &mut String, name: &dyn Fn(u8) -> String) {
         let all = self.offsets();
         if all.n == 0 {
             let _ = writeln!(s, "boundaries        none found");
@@ -266,6 +279,10 @@ impl Inspection {
                 );
             }
         }
+    }
+
+    /// Bead widths: the spread, the narrowest and widest, the median per material.
+    fn report_widths(&self, s: &mut String, name: &dyn Fn(u8) -> String) {
         let w: Vec<f64> = self.widths.iter().map(|x| x.2).collect();
         if !w.is_empty() {
             let cap = 1.5 * self.plan.pitch;
@@ -326,7 +343,6 @@ impl Inspection {
                 );
             }
         }
-        s
     }
 }
 
@@ -401,7 +417,7 @@ pub fn inspect_photo(
             message: "the job prints nothing to compare the photo with".into(),
         });
     }
-    let frame = Frame {
+    let frame = DesignFrame {
         lo: plan.lo,
         hi: plan.hi,
         px_per_mm: o.px_per_mm,

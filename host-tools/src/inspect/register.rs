@@ -4,7 +4,7 @@
 //! the design, and the photo resampled into the design's frame. Which of the four
 //! rotations is right is decided by the caller from the colours.
 
-use super::frame::Frame;
+use super::frame::DesignFrame;
 use super::measure::Drift;
 use super::photo::Photo;
 use image::{GrayImage, Rgb, RgbImage};
@@ -144,7 +144,7 @@ fn intersect(l1: ([f64; 2], [f64; 2]), l2: ([f64; 2], [f64; 2])) -> Option<[f64;
 
 /// The homography taking the photo's corners to the frame's footprint corners, the
 /// photo's corner list turned by `turn` quarter turns (0..4).
-pub fn projection(photo: [[f64; 2]; 4], frame: &Frame, turn: usize) -> Option<Projection> {
+pub fn projection(photo: [[f64; 2]; 4], frame: &DesignFrame, turn: usize) -> Option<Projection> {
     projection_to(photo, frame.corners(), turn)
 }
 
@@ -167,7 +167,7 @@ pub fn projection_to(photo: [[f64; 2]; 4], to: [[f64; 2]; 4], turn: usize) -> Op
 /// one-pixel slivers of plate between beads).
 pub fn rectify(
     photo: &Photo,
-    frame: &Frame,
+    frame: &DesignFrame,
     proj: Projection,
     drift: Option<&Drift>,
 ) -> (Vec<[f32; 3]>, RgbImage) {

@@ -7,7 +7,7 @@
 
 use super::classify::{self, Palette, PLATE};
 use super::design::Plan;
-use super::frame::Frame;
+use super::frame::DesignFrame;
 use super::measure::{self, Drift, Found, MaterialWidth};
 use super::photo::Photo;
 use super::{markers, register, Registration, EDGE_EVERY_MM, KMEANS_RESTARTS};
@@ -27,7 +27,7 @@ pub(super) struct Registered {
 pub(super) fn register(
     photo: &Photo,
     plan: &Plan,
-    frame: &Frame,
+    frame: &DesignFrame,
     use_markers: bool,
 ) -> Option<Registered> {
     let by_markers = if use_markers {
@@ -89,7 +89,7 @@ pub(super) struct Turned {
 /// perspective.
 pub(super) fn classify(
     photo: &Photo,
-    frame: &Frame,
+    frame: &DesignFrame,
     at: Registered,
     palette: &Palette,
     design: &[u8],
@@ -152,7 +152,7 @@ pub(super) struct Refined {
 pub(super) fn refine(
     photo: &Photo,
     plan: &Plan,
-    frame: &Frame,
+    frame: &DesignFrame,
     design: &[u8],
     palette: &Palette,
     at: Registered,
@@ -247,7 +247,7 @@ pub(super) fn refine(
 /// Share of the paste seen that shows another material than `plan` with every found
 /// boundary moved to where it was found (`moved`). Only where paste shows: gaps between
 /// thin beads are not another job.
-pub(super) fn unexplained(moved: &Plan, frame: &Frame, seen: &[u8]) -> f64 {
+pub(super) fn unexplained(moved: &Plan, frame: &DesignFrame, seen: &[u8]) -> f64 {
     let want = measure::paint(moved, frame);
     let (mut n, mut bad) = (0u64, 0u64);
     for (&d, &s) in want.iter().zip(seen) {
@@ -263,7 +263,7 @@ pub(super) fn unexplained(moved: &Plan, frame: &Frame, seen: &[u8]) -> f64 {
 pub(super) fn widths(
     plan: &Plan,
     moved: &Plan,
-    frame: &Frame,
+    frame: &DesignFrame,
     seen: &[u8],
     found: &[Found],
 ) -> (Vec<(usize, f64, f64)>, Vec<MaterialWidth>) {

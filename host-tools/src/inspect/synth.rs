@@ -5,7 +5,7 @@
 //! light, blur and noise. Tests and the README's worked example use it; `dollop inspect` itself does not.
 
 use super::classify::PLATE;
-use super::frame::Frame;
+use super::frame::DesignFrame;
 use dollop::config::{Config, Pressure};
 use dollop::rheology::Rheology;
 use dollop::RunState;
@@ -93,7 +93,7 @@ pub const WIDTH_WINDOW_MM: f64 = 0.3;
 /// What landed, painted into `frame`: material per pixel or `PLATE`.
 pub struct Deposit {
     /// The frame painted.
-    pub frame: Frame,
+    pub frame: DesignFrame,
     /// Material per pixel, `PLATE` where nothing landed.
     pub px: Vec<u8>,
 }
@@ -103,7 +103,7 @@ pub fn deposit(
     config: &Config,
     plant: &Config,
     job: &Job,
-    frame: Frame,
+    frame: DesignFrame,
 ) -> Result<(Deposit, RunResult), dollop_sim::SimError> {
     let (w, h) = frame.size();
     let mut px = vec![PLATE; (w * h) as usize];

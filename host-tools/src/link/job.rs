@@ -45,8 +45,7 @@ impl JobFile {
         initial: u8,
         commands: &[Command],
     ) -> JobFile {
-        let body = job_file::encode_body(commands);
-        let header = job_file::header_for(commands, &body, start_um, initial, config);
+        let (header, body) = job_file::encode(commands, start_um, initial, config);
         JobFile { header, body }
     }
 

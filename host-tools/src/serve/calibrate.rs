@@ -10,7 +10,7 @@
 use super::design::Upload;
 use super::error::{ApiError, ApiResult};
 use crate::calibrate::camera::{self, frames};
-use crate::calibrate::error::CalError;
+use crate::calibrate::error::{CalError, CalOption};
 use crate::calibrate::lag::{self, InletKind};
 use crate::calibrate::rheology::{self, Kind};
 use crate::calibrate::{flow, output};
@@ -84,10 +84,10 @@ impl Kept {
         &self,
         report: String,
         fragment: Option<String>,
-        plot: impl FnOnce(&std::path::Path, &mut output::Outputs) -> Result<(), CalError>,
+        plot: impl FnOnce(&std::path::Path, &mut output::StagedFiles) -> Result<(), CalError>,
     ) -> ApiResult<Shown> {
         let at = self.dir.path().join("plot.png");
-        let mut out = output::Outputs::new();
+        let mut out = output::StagedFiles::new();
         plot(&at, &mut out)
             .map_err(|e| ApiError::from(e).map_message(|m| self.strip(m.to_string())))?;
         output::commit(out).map_err(|e| ApiError::internal(self.strip(e.to_string())))?;
@@ -341,7 +341,13 @@ fn camera_refusal(kept: &Kept, e: CalError) -> ApiError {
             name(&path)
         ),
         CalError::OverLimit { what, option, .. } => format!(
-            "{what} (the dashboard's limit); send fewer frames or crop them to the filament, or run dollop calibrate camera on the folder with {option}"
+            "{what} (the dashboard's limit); send fewer frames or crop them to the filament, or run dollop calibrate camera on the folder with {}",
+            // The command's flags for the two limits frames are read under.
+            if option == CalOption::MaxFrames {
+                "--max-frames"
+            } else {
+                "--max-pixels"
+            }
         ),
         CalError::NotMeasurable { message, .. } => format!(
             "{message}: the frames should show the filament leaving the nozzle, moving down, in focus and lit; set the region of interest around it"

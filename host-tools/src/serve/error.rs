@@ -4,7 +4,7 @@
 //! in the page's terms (its field labels, not the command line's flags). Nothing from
 //! outside reaches a panic: every failure becomes one of these.
 
-use crate::calibrate::error::CalError;
+use crate::calibrate::error::{CalError, CalOption, OptionError};
 use crate::slicer::{SliceError, SliceOption};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
@@ -200,15 +200,25 @@ impl From<SliceError> for ApiError {
 
 impl From<CalError> for ApiError {
     fn from(e: CalError) -> Self {
-        // The flow fit's mass flows need the density: the page's field, not the flag.
-        let m = e
-            .to_string()
-            .replace("say --density G_PER_ML", "give the density (g/ml)")
-            .replace("--density ", "density ");
-        match e {
-            CalError::RoiTooSmall { .. } => ApiError::bad(m).at("cam-roi"),
-            _ if m.contains("density") => ApiError::bad(m).at("cal-density"),
-            _ => ApiError::bad(m),
+        // The library names options in plain words; the page points at their fields.
+        let field = match &e {
+            CalError::RoiTooSmall { .. } => Some("cam-roi"),
+            CalError::NeedsDensity { .. } => Some("cal-density"),
+            CalError::KindUnclear { .. } => Some("cal-kind"),
+            CalError::Option(OptionError::NotPositive { option, .. }) => match option {
+                CalOption::Density => Some("cal-density"),
+                CalOption::Fps => Some("cam-fps"),
+                CalOption::MmPerPx => Some("cam-mm_per_px"),
+                CalOption::TargetWidth => Some("cam-target_width"),
+                CalOption::NozzleDiameter => Some("cam-nozzle"),
+                _ => None,
+            },
+            _ => None,
+        };
+        let e = ApiError::bad(e.to_string());
+        match field {
+            Some(f) => e.at(f),
+            None => e,
         }
     }
 }

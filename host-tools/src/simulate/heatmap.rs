@@ -36,24 +36,15 @@ impl Heatmap {
     pub fn for_job(job: &Job, config: &Config) -> Self {
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
-        let mut p = [job.start_um[0] as f64 * 1e-3, job.start_um[1] as f64 * 1e-3];
-        let mut grow = |p: [f64; 2]| {
+        let mut grow = |p: [i32; 3]| {
             for a in 0..2 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
+                lo[a] = lo[a].min(p[a] as f64 * 1e-3);
+                hi[a] = hi[a].max(p[a] as f64 * 1e-3);
             }
         };
-        grow(p);
-        for c in &job.commands {
-            match *c {
-                dollop::Command::Print { dx, dy, .. } => {
-                    p[0] += dx as f64 * 1e-3;
-                    p[1] += dy as f64 * 1e-3;
-                }
-                dollop::Command::Travel { x, y, .. } => p = [x as f64 * 1e-3, y as f64 * 1e-3],
-                _ => {}
-            }
-            grow(p);
+        grow(job.start_um);
+        for m in dollop::command::walk(&job.commands, job.start_um) {
+            grow(m.to);
         }
         let margin = 2.0;
         let (w_mm, h_mm) = (hi[0] - lo[0] + 2.0 * margin, hi[1] - lo[1] + 2.0 * margin);
@@ -164,7 +155,7 @@ impl Heatmap {
 
     /// Writes the PNG atomically.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let mut staged = output::Outputs::new();
+        let mut staged = output::StagedFiles::new();
         self.stage(&mut staged, path)?;
         output::commit(staged)?;
         Ok(())
@@ -172,7 +163,7 @@ impl Heatmap {
 
     /// Stages the framed PNG ([`Heatmap::figure`]) in `staged` (renamed into place when
     /// it is committed).
-    pub fn stage(&self, staged: &mut output::Outputs, path: &Path) -> anyhow::Result<()> {
+    pub fn stage(&self, staged: &mut output::StagedFiles, path: &Path) -> anyhow::Result<()> {
         use image::ImageEncoder;
         let img = self
             .figure()

@@ -18,8 +18,9 @@ use dollop::RunState;
 use dollop_sim::{Job, PausePlan, RunOptions, RunResult};
 use std::io::Write;
 
-/// What `simulate_job` should produce besides the result.
-pub struct Outputs<'a> {
+/// What a run records besides its result (trace rows, the plate heatmap, a progress bar)
+/// and when it gives up: `simulate_job`'s `out`.
+pub struct Recording<'a> {
     /// Trace rows go here.
     pub trace: Option<&'a mut dyn Write>,
     /// Paint the plate.
@@ -37,7 +38,7 @@ pub fn simulate_job(
     config: &Config,
     job: &Job,
     plant: bool,
-    out: Outputs<'_>,
+    out: Recording<'_>,
 ) -> anyhow::Result<RunResult> {
     let machine = config
         .validate::<f64, { slicer::INLETS }>()
@@ -50,7 +51,7 @@ pub fn simulate_job(
     } else {
         indicatif::ProgressBar::hidden()
     };
-    let Outputs {
+    let Recording {
         mut trace,
         mut heatmap,
         max_seconds,

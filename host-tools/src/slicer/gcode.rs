@@ -5,10 +5,11 @@
 //! during the valve's dead time), and wherever the channel holds more than one material
 //! the head speed follows the flow, `v = Q / S`, in sub-segments of at most 0.25 mm.
 //! The seed paper's coarser scheme (a handful of segments per switch) is here too, as the
-//! baseline the tests compare against. Simulating G-code is `gcode_sim`'s.
+//! baseline the tests compare against. Simulating G-code is `gcode_feed_judge`'s.
 
 use super::error::SliceError;
 use super::output::write_atomic;
+use dollop::command::{walk, MoveKind};
 use dollop::flow_model::solve;
 use dollop::rheology::FlowLaw;
 use dollop::{Command, Machine};
@@ -77,56 +78,59 @@ struct Flat {
 }
 
 fn flatten(commands: &[Command], start_um: [i32; 3], initial: u8) -> Flat {
-    let mm = |v: i64| v as f64 * 1e-3;
-    let mut at = [start_um[0] as i64, start_um[1] as i64, start_um[2] as i64];
+    let mm = |v: i32| v as f64 * 1e-3;
     let mut s = 0.0;
     let mut items = Vec::new();
     let mut boundaries = Vec::new();
     let mut mat = initial;
-    for c in commands {
-        match *c {
-            Command::Print { dx, dy, material } => {
-                if dx == 0 && dy == 0 {
+    // Nothing after `End` is the job's; the walk skips dwells, which are kept in place
+    // from the commands between two moves.
+    let body = &commands[..commands
+        .iter()
+        .position(|c| *c == Command::End)
+        .unwrap_or(commands.len())];
+    let dwells = |between: &[Command]| -> Vec<Item> {
+        between
+            .iter()
+            .filter_map(|c| match *c {
+                Command::Dwell { ms } => Some(Item::Dwell(ms)),
+                _ => None,
+            })
+            .collect()
+    };
+    let mut next = 0;
+    for m in walk(body, start_um) {
+        items.extend(dwells(&body[next..m.index]));
+        next = m.index + 1;
+        match m.kind {
+            MoveKind::Print { material } => {
+                if m.from == m.to {
                     continue;
                 }
-                let from = [mm(at[0]), mm(at[1])];
-                at[0] += dx as i64;
-                at[1] += dy as i64;
-                let to = [mm(at[0]), mm(at[1])];
-                let len = mm(dx as i64).hypot(mm(dy as i64));
+                let [dx, dy] = [m.to[0] - m.from[0], m.to[1] - m.from[1]];
+                let len = mm(dx).hypot(mm(dy));
                 if material != mat {
                     boundaries.push((s, material));
                     mat = material;
                 }
                 items.push(Item::Seg(Seg {
-                    from,
-                    to,
+                    from: [mm(m.from[0]), mm(m.from[1])],
+                    to: [mm(m.to[0]), mm(m.to[1])],
                     s0: s,
                     s1: s + len,
                 }));
                 s += len;
             }
-            Command::Travel { x, y, z } => {
-                at = [x as i64, y as i64, z as i64];
-                items.push(Item::Travel([mm(at[0]), mm(at[1]), mm(at[2])]));
-            }
-            Command::Layer { z } => {
-                at[2] = z as i64;
-                items.push(Item::Layer(mm(at[2])));
-            }
-            Command::Dwell { ms } => items.push(Item::Dwell(ms)),
-            Command::End => break,
+            MoveKind::Travel => items.push(Item::Travel(m.to.map(mm))),
+            MoveKind::Layer => items.push(Item::Layer(mm(m.to[2]))),
         }
     }
+    items.extend(dwells(&body[next..]));
     Flat {
         items,
         boundaries,
         total_s: s,
-        start: [
-            mm(start_um[0] as i64),
-            mm(start_um[1] as i64),
-            mm(start_um[2] as i64),
-        ],
+        start: start_um.map(mm),
     }
 }
 
@@ -495,33 +499,13 @@ pub fn export(
         Style::Fine { max_sub_mm } => fine_profile(&head, flat.total_s, max_sub_mm.max(0.01)),
         Style::Coarse { segments } => coarse_profile(&head, flat.total_s, segments),
     };
-    let l_adv = head.v_transit / head.s;
     let mut w = Writer {
         out: String::with_capacity(commands.len() * 24),
         pos: [f64::NAN; 3],
         f: f64::NAN,
         stats: GcodeStats::default(),
     };
-    let _ = writeln!(
-        w.out,
-        "; dollop G-code (RepRapFirmware dialect), {} style",
-        match style {
-            Style::Fine { .. } => "fine",
-            Style::Coarse { .. } => "coarse (seed paper)",
-        }
-    );
-    let _ = writeln!(
-        w.out,
-        "; bead section S = {:.4} mm^2, advance distance L_adv = {:.3} mm; valves switch L_adv ahead of each boundary",
-        head.s, l_adv
-    );
-    for (i, name) in material_names.iter().enumerate() {
-        let _ = writeln!(w.out, "; valve of inlet {i} ({name}) is GPIO port P{i} (configure it with M950 P{i} C\"...\")");
-    }
-    w.out.push_str("G21\nG90\n");
-    for i in 0..machine.inlets.len() {
-        w.valve(i as u8, false);
-    }
+    preamble(&mut w, style, &head, machine, material_names, flat.start);
     let travel_f = machine.motion.travel_speed;
     let z_f = machine.motion.max_speed[2];
     let close_wait_ms = machine
@@ -530,15 +514,6 @@ pub fn export(
         .map(|i| i.close_delay_s + 5.0 * i.decay_s)
         .fold(0.0f64, f64::max)
         * 1e3;
-    // To the start: Z first, then X and Y.
-    w.out.push_str("G0 Z");
-    num(&mut w.out, flat.start[2], 3);
-    w.out.push_str(" F");
-    num(&mut w.out, (z_f * 600.0).round() / 10.0, 1);
-    w.out.push('\n');
-    w.pos[2] = (flat.start[2] * 1000.0).round() / 1000.0;
-    w.f = (z_f * 600.0).round() / 10.0;
-    w.move_to(flat.start, travel_f, false);
 
     let s_area = head.s;
     let mut open: Option<u8> = None;
@@ -635,6 +610,49 @@ pub fn export(
     w.out.push_str("M400\n; end of job\n");
     w.stats.bytes = w.out.len();
     Ok((w.out, w.stats))
+}
+
+/// The export's comments, units and closed valves, then the move to `start`: Z first,
+/// then X and Y.
+fn preamble(
+    w: &mut Writer,
+    style: Style,
+    head: &Head,
+    machine: &Machine<f64, 4>,
+    material_names: &[String],
+    start: [f64; 3],
+) {
+    let _ = writeln!(
+        w.out,
+        "; dollop G-code (RepRapFirmware dialect), {} style",
+        match style {
+            Style::Fine { .. } => "fine",
+            Style::Coarse { .. } => "coarse (seed paper)",
+        }
+    );
+    let _ = writeln!(
+        w.out,
+        "; bead section S = {:.4} mm^2, advance distance L_adv = {:.3} mm; valves switch L_adv ahead of each boundary",
+        head.s, head.v_transit / head.s
+    );
+    for (i, name) in material_names.iter().enumerate() {
+        let _ = writeln!(w.out, "; valve of inlet {i} ({name}) is GPIO port P{i} (configure it with M950 P{i} C\"...\")");
+    }
+    w.out.push_str("G21\nG90\n");
+    for i in 0..machine.inlets.len() {
+        w.valve(i as u8, false);
+    }
+    let travel_f = machine.motion.travel_speed;
+    let z_f = machine.motion.max_speed[2];
+    // To the start: Z first, then X and Y.
+    w.out.push_str("G0 Z");
+    num(&mut w.out, start[2], 3);
+    w.out.push_str(" F");
+    num(&mut w.out, (z_f * 600.0).round() / 10.0, 1);
+    w.out.push('\n');
+    w.pos[2] = (start[2] * 1000.0).round() / 1000.0;
+    w.f = (z_f * 600.0).round() / 10.0;
+    w.move_to(start, travel_f, false);
 }
 
 /// Writes G-code atomically.

@@ -12,6 +12,8 @@
 //! the path the G-code traced against the design, and the bead section over every
 //! `SECTION_MM` of bead. Parsing reads only the words dollop writes; others are skipped.
 
+use super::gcode_feed_judge::{move_word, statements};
+use dollop::command::{walk, MoveKind};
 use dollop::config::Config;
 use dollop::Command;
 use dollop_sim::plant::Plant;
@@ -55,26 +57,19 @@ pub fn parse(text: &str) -> Vec<Op> {
     let mut ops = Vec::new();
     let mut pos = [0.0f64; 3];
     let mut f = 1.0f64;
-    for line in text.lines() {
-        let code = line.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
+    for (cmd, words) in statements(text) {
         // Words with non-finite numbers are skipped, as unknown words are.
-        let word = |w: &str| super::gcode_sim::word(w).filter(|v| v.1.is_finite());
-        match cmd.to_ascii_uppercase().as_str() {
+        let word = |w: &str| super::gcode_feed_judge::word(w).filter(|v| v.1.is_finite());
+        match cmd.as_str() {
             c @ ("G0" | "G1") => {
                 let mut to = pos;
                 let mut bits = None;
-                for w in words {
-                    match word(w) {
-                        Some(('X', v)) => to[0] = v,
-                        Some(('Y', v)) => to[1] = v,
-                        Some(('Z', v)) => to[2] = v,
-                        Some(('F', v)) if v > 0.0 => f = v / 60.0,
-                        Some(('P', v)) if (0.0..=u32::MAX as f64).contains(&v) => {
-                            bits = Some(v as u32)
-                        }
-                        _ => {}
+                for (c, v) in words.filter_map(word) {
+                    if !move_word(c, v, &mut to, &mut f)
+                        && c == 'P'
+                        && (0.0..=u32::MAX as f64).contains(&v)
+                    {
+                        bits = Some(v as u32)
                     }
                 }
                 ops.push(Op::Move {
@@ -227,29 +222,23 @@ pub fn design_boundaries(
     start_um: [i32; 3],
     initial: u8,
 ) -> Vec<DesignBoundary> {
-    let mut at = start_um.map(|v| v as i64);
     let mut mat = initial;
     let mut out = Vec::new();
-    for c in commands {
-        match *c {
-            Command::Print { dx, dy, material } => {
-                if dx == 0 && dy == 0 {
-                    continue;
-                }
-                if material != mat {
-                    out.push(DesignBoundary {
-                        at: at.map(|v| v as f64 * 1e-3),
-                        material,
-                    });
-                    mat = material;
-                }
-                at[0] += dx as i64;
-                at[1] += dy as i64;
+    // Nothing after `End` is the job's.
+    let end = commands
+        .iter()
+        .position(|c| *c == Command::End)
+        .unwrap_or(commands.len());
+    for m in walk(&commands[..end], start_um) {
+        match m.kind {
+            MoveKind::Print { material } if m.from != m.to && material != mat => {
+                out.push(DesignBoundary {
+                    at: m.from.map(|v| v as f64 * 1e-3),
+                    material,
+                });
+                mat = material;
             }
-            Command::Travel { x, y, z } => at = [x as i64, y as i64, z as i64],
-            Command::Layer { z } => at[2] = z as i64,
-            Command::Dwell { .. } => {}
-            Command::End => break,
+            _ => {}
         }
     }
     out
@@ -360,6 +349,107 @@ struct Timeline {
     end: f64,
 }
 
+/// A move from `from` to `to` at `v` as the planner limits it (each axis's speed and
+/// acceleration along its direction); `None` when it does not move.
+fn pending(fw: &Firmware, from: [f64; 3], to: [f64; 3], v: f64, travel: bool) -> Option<Pending> {
+    let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    if len < 1e-9 {
+        return None;
+    }
+    let dir = d.map(|c| c / len);
+    let mut vmax = v.max(1e-3);
+    let mut a = f64::INFINITY;
+    for (ax, c) in dir.iter().map(|c| c.abs()).enumerate() {
+        if c > 1e-12 {
+            vmax = vmax.min(fw.max_speed[ax] / c);
+            a = a.min(fw.max_accel[ax] / c);
+        }
+    }
+    Some(Pending {
+        from,
+        dir,
+        len,
+        v: vmax,
+        a,
+        travel,
+    })
+}
+
+/// Plans the moves queued since the last sync: junction limits, the backward and forward
+/// passes, then one trapezoid block each from time `*t` (print length from `*s`), and
+/// the valve changes at their moves' starts (less their advance). Empties both queues.
+fn end_run(
+    fw: &Firmware,
+    run: &mut Vec<Pending>,
+    marks: &mut Vec<(usize, f64, usize, bool)>,
+    t: &mut f64,
+    s: &mut f64,
+    tl: &mut Timeline,
+) {
+    let n = run.len();
+    // Junction limits, then the backward and forward passes.
+    let mut entry = vec![0.0f64; n + 1];
+    for k in 1..n {
+        let (p, q) = (run[k - 1], run[k]);
+        let want = p.v.min(q.v);
+        let jd = fw.junction_speed(p.dir, q.dir, p.a.min(q.a));
+        entry[k] = if jd >= want {
+            want
+        } else {
+            tl.full_stops += usize::from(!p.travel && !q.travel);
+            0.0
+        };
+    }
+    for k in (0..n).rev() {
+        let reach = (entry[k + 1].powi(2) + 2.0 * run[k].a * run[k].len).sqrt();
+        entry[k] = entry[k].min(reach);
+    }
+    for k in 0..n {
+        let reach = (entry[k].powi(2) + 2.0 * run[k].a * run[k].len).sqrt();
+        entry[k + 1] = entry[k + 1].min(reach);
+    }
+    let mut starts = Vec::with_capacity(n + 1);
+    for (k, m) in run.iter().enumerate() {
+        starts.push(*t);
+        let (vi, vo, a) = (entry[k], entry[k + 1], m.a);
+        let peak = ((2.0 * a * m.len + vi * vi + vo * vo) / 2.0).sqrt();
+        let vc = m.v.min(peak).max(vi).max(vo);
+        let da = (vc * vc - vi * vi) / (2.0 * a);
+        let dd = (vc * vc - vo * vo) / (2.0 * a);
+        let tc = if vc > 0.0 {
+            ((m.len - da - dd) / vc).max(0.0)
+        } else {
+            0.0
+        };
+        let b = Block {
+            from: m.from,
+            dir: m.dir,
+            len: m.len,
+            t0: *t,
+            vi,
+            vc,
+            a,
+            ta: (vc - vi) / a,
+            tc,
+            td: (vc - vo) / a,
+            travel: m.travel,
+            s0: *s,
+        };
+        *t = b.end();
+        if !m.travel {
+            *s += m.len;
+        }
+        tl.blocks.push(b);
+    }
+    starts.push(*t);
+    for &(k, early, inlet, open) in marks.iter() {
+        tl.events.push(((starts[k] - early).max(0.0), inlet, open));
+    }
+    run.clear();
+    marks.clear();
+}
+
 fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline {
     let inlet_of = |port: u32| ports.iter().position(|&p| p == port);
     let mut tl = Timeline {
@@ -377,73 +467,6 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
     let mut t = 0.0;
     let mut s = 0.0;
     let mut valves = vec![false; ports.len()];
-    let end_run = |run: &mut Vec<Pending>,
-                   marks: &mut Vec<(usize, f64, usize, bool)>,
-                   t: &mut f64,
-                   s: &mut f64,
-                   tl: &mut Timeline| {
-        let n = run.len();
-        // Junction limits, then the backward and forward passes.
-        let mut entry = vec![0.0f64; n + 1];
-        for k in 1..n {
-            let (p, q) = (run[k - 1], run[k]);
-            let want = p.v.min(q.v);
-            let jd = fw.junction_speed(p.dir, q.dir, p.a.min(q.a));
-            entry[k] = if jd >= want {
-                want
-            } else {
-                tl.full_stops += usize::from(!p.travel && !q.travel);
-                0.0
-            };
-        }
-        for k in (0..n).rev() {
-            let reach = (entry[k + 1].powi(2) + 2.0 * run[k].a * run[k].len).sqrt();
-            entry[k] = entry[k].min(reach);
-        }
-        for k in 0..n {
-            let reach = (entry[k].powi(2) + 2.0 * run[k].a * run[k].len).sqrt();
-            entry[k + 1] = entry[k + 1].min(reach);
-        }
-        let mut starts = Vec::with_capacity(n + 1);
-        for (k, m) in run.iter().enumerate() {
-            starts.push(*t);
-            let (vi, vo, a) = (entry[k], entry[k + 1], m.a);
-            let peak = ((2.0 * a * m.len + vi * vi + vo * vo) / 2.0).sqrt();
-            let vc = m.v.min(peak).max(vi).max(vo);
-            let da = (vc * vc - vi * vi) / (2.0 * a);
-            let dd = (vc * vc - vo * vo) / (2.0 * a);
-            let tc = if vc > 0.0 {
-                ((m.len - da - dd) / vc).max(0.0)
-            } else {
-                0.0
-            };
-            let b = Block {
-                from: m.from,
-                dir: m.dir,
-                len: m.len,
-                t0: *t,
-                vi,
-                vc,
-                a,
-                ta: (vc - vi) / a,
-                tc,
-                td: (vc - vo) / a,
-                travel: m.travel,
-                s0: *s,
-            };
-            *t = b.end();
-            if !m.travel {
-                *s += m.len;
-            }
-            tl.blocks.push(b);
-        }
-        starts.push(*t);
-        for &(k, early, inlet, open) in marks.iter() {
-            tl.events.push(((starts[k] - early).max(0.0), inlet, open));
-        }
-        run.clear();
-        marks.clear();
-    };
     for op in ops {
         match op {
             Op::Move {
@@ -463,28 +486,10 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
                         }
                     }
                 }
-                let d = [to[0] - pos[0], to[1] - pos[1], to[2] - pos[2]];
-                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                if len < 1e-9 {
+                let Some(p) = pending(fw, pos, *to, *v, *travel) else {
                     continue;
-                }
-                let dir = d.map(|c| c / len);
-                let mut vmax = v.max(1e-3);
-                let mut a = f64::INFINITY;
-                for (ax, c) in dir.iter().map(|c| c.abs()).enumerate() {
-                    if c > 1e-12 {
-                        vmax = vmax.min(fw.max_speed[ax] / c);
-                        a = a.min(fw.max_accel[ax] / c);
-                    }
-                }
-                run.push(Pending {
-                    from: pos,
-                    dir,
-                    len,
-                    v: vmax,
-                    a,
-                    travel: *travel,
-                });
+                };
+                run.push(p);
                 pos = *to;
             }
             Op::Valve { port, on } => {
@@ -496,7 +501,7 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
                 }
             }
             Op::Dwell(d) => {
-                end_run(&mut run, &mut marks, &mut t, &mut s, &mut tl);
+                end_run(fw, &mut run, &mut marks, &mut t, &mut s, &mut tl);
                 tl.blocks.push(Block {
                     from: pos,
                     dir: [0.0; 3],
@@ -513,7 +518,7 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
                 });
                 t += d;
             }
-            Op::Sync => end_run(&mut run, &mut marks, &mut t, &mut s, &mut tl),
+            Op::Sync => end_run(fw, &mut run, &mut marks, &mut t, &mut s, &mut tl),
             Op::PortMap {
                 ports: p,
                 advance_s,
@@ -523,7 +528,7 @@ fn build(ops: &[Op], fw: &Firmware, ports: &[u32], start: [f64; 3]) -> Timeline 
             }
         }
     }
-    end_run(&mut run, &mut marks, &mut t, &mut s, &mut tl);
+    end_run(fw, &mut run, &mut marks, &mut t, &mut s, &mut tl);
     tl.events.sort_by(|a, b| a.0.total_cmp(&b.0));
     tl.end = t;
     tl

@@ -37,7 +37,7 @@ pub fn bounds(commands: &[Command], start_um: [i32; 3]) -> ([i32; 3], [i32; 3]) 
 }
 
 /// The body: postcard commands back to back.
-pub fn encode_body(commands: &[Command]) -> Vec<u8> {
+fn encode_body(commands: &[Command]) -> Vec<u8> {
     let mut body = Vec::with_capacity(commands.len() * 6);
     let mut buf = [0u8; MAX_COMMAND_LEN];
     for c in commands {
@@ -50,7 +50,7 @@ pub fn encode_body(commands: &[Command]) -> Vec<u8> {
 }
 
 /// The complete header for `commands` (already encoded as `body`) sliced for `config`.
-pub fn header_for(
+fn header_for(
     commands: &[Command],
     body: &[u8],
     start_um: [i32; 3],
@@ -105,9 +105,23 @@ pub fn job_bytes(header: &JobHeader, body: &[u8]) -> Vec<u8> {
     out
 }
 
-/// Writes a job file atomically.
-pub fn write_job(path: &Path, header: &JobHeader, body: &[u8]) -> Result<(), SliceError> {
-    write_bytes(path, &job_bytes(header, body))
+/// `commands` (from `start_um`, primed with `initial_material`) encoded for `config`: the
+/// complete header and the body. Every job the host makes is encoded here.
+pub fn encode(
+    commands: &[Command],
+    start_um: [i32; 3],
+    initial_material: u8,
+    config: &Config,
+) -> (JobHeader, Vec<u8>) {
+    let body = encode_body(commands);
+    let header = header_for(commands, &body, start_um, initial_material, config);
+    (header, body)
+}
+
+/// Encodes `job` for `config` and writes it atomically to `path`.
+pub fn write(path: &Path, job: &dollop_sim::Job, config: &Config) -> Result<(), SliceError> {
+    let (header, body) = encode(&job.commands, job.start_um, job.initial_material, config);
+    write_bytes(path, &job_bytes(&header, &body))
 }
 
 /// Decodes a whole job held in memory, checking magic, version, CRCs, length and count.

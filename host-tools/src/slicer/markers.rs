@@ -6,6 +6,7 @@
 //! in a photo is `inspect`'s business.
 
 use super::toolpath::um;
+use dollop::command::{walk, MoveKind};
 use dollop::Command;
 
 /// One marker: a bead from `ends[0]` to `corner` to `ends[1]`, legs at a right angle.
@@ -92,37 +93,23 @@ pub fn add(
     pitch: f64,
     travel: ([f64; 2], [f64; 2]),
 ) -> Result<Vec<Command>, MarkerError> {
-    let mut pos = [start_um[0] as i64, start_um[1] as i64];
-    let mut z = start_um[2];
     let mut zs: Vec<i32> = Vec::new();
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut material = None;
-    for c in commands {
-        match *c {
-            Command::Print {
-                dx,
-                dy,
-                material: m,
-            } => {
-                for p in [pos, [pos[0] + dx as i64, pos[1] + dy as i64]] {
-                    for a in 0..2 {
-                        lo[a] = lo[a].min(p[a] as f64 * 1e-3);
-                        hi[a] = hi[a].max(p[a] as f64 * 1e-3);
-                    }
-                }
-                pos = [pos[0] + dx as i64, pos[1] + dy as i64];
-                material = Some(m);
-                if zs.last() != Some(&z) {
-                    zs.push(z);
-                }
+    for m in walk(commands, start_um) {
+        let MoveKind::Print { material: printed } = m.kind else {
+            continue;
+        };
+        for p in [m.from, m.to] {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a] as f64 * 1e-3);
+                hi[a] = hi[a].max(p[a] as f64 * 1e-3);
             }
-            Command::Travel { x, y, z: nz } => {
-                pos = [x as i64, y as i64];
-                z = nz;
-            }
-            Command::Layer { z: nz } => z = nz,
-            Command::Dwell { .. } | Command::End => {}
+        }
+        material = Some(printed);
+        if zs.last() != Some(&m.from[2]) {
+            zs.push(m.from[2]);
         }
     }
     let Some(material) = material else {

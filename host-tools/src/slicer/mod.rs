@@ -1,7 +1,7 @@
 //! The slicer: turns designs (an image, or one STL per material) into the core's compact
 //! job, plus G-code for other controllers and preview pictures. Entry points for the
 //! `dollop slice` command and for `demo`/`simulate`: [`load_config`], [`slice_files`],
-//! [`job_file::write_job`]/[`job_file::read_job`], [`gcode_exec::export`] (and the older
+//! [`job_file::write`]/[`job_file::read_job`], [`gcode_exec::export`] (and the older
 //! [`gcode::export`]) and
 //! [`preview::render`]. Running jobs is the `dollop-sim` crate's business.
 
@@ -11,9 +11,9 @@ pub mod error;
 pub mod gcode;
 pub mod gcode_dialect;
 pub mod gcode_exec;
+pub mod gcode_feed_judge;
 pub mod gcode_judge;
 pub mod gcode_ramps;
-pub mod gcode_sim;
 pub mod gcode_step;
 pub mod image;
 pub mod job_file;
@@ -166,8 +166,7 @@ pub fn with_markers(
             _ => {}
         }
     }
-    let body = job_file::encode_body(&commands);
-    let header = job_file::header_for(&commands, &body, h.start_um, h.initial_material, config);
+    let (header, body) = job_file::encode(&commands, h.start_um, h.initial_material, config);
     Ok(Sliced {
         header,
         commands,
@@ -235,7 +234,7 @@ pub fn design_kind(path: &Path) -> Result<DesignKind, SliceError> {
 }
 
 /// Slices design files for `config`: one image (materials by colour), or one STL per
-/// material in inlet order. Nothing is written; see [`job_file::write_job`].
+/// material in inlet order. Nothing is written; see [`job_file::write`].
 pub fn slice_files(
     paths: &[PathBuf],
     config: &Config,
@@ -386,14 +385,7 @@ pub fn slice_design(
     opts: &PathOptions,
 ) -> Result<Sliced, SliceError> {
     let tp = toolpath::plan(design, config, machine, opts)?;
-    let body = job_file::encode_body(&tp.commands);
-    let header = job_file::header_for(
-        &tp.commands,
-        &body,
-        tp.start_um,
-        tp.initial_material,
-        config,
-    );
+    let (header, body) = job_file::encode(&tp.commands, tp.start_um, tp.initial_material, config);
     Ok(Sliced {
         header,
         commands: tp.commands,

@@ -1,7 +1,7 @@
 //! Writing outputs so that nothing half-written is ever left: each file is written to a
 //! temporary file in the destination's directory and renamed over it only once complete;
 //! a command with several outputs stages them all first and renames them together
-//! ([`Outputs`]), so a failure on one leaves none. Existing symlinks, FIFOs, devices and
+//! ([`StagedFiles`]), so a failure on one leaves none. Existing symlinks, FIFOs, devices and
 //! directories at an output path are refused rather than replaced. Temporary files are
 //! registered so that Ctrl-C removes them. Also the progress bars, shown on a terminal
 //! and silent when stderr is piped.
@@ -122,18 +122,18 @@ struct Staged {
     tmp: tempfile::TempPath,
 }
 
-/// Outputs written together or not at all: [`Outputs::stage`] each (a temporary file
-/// beside the destination, written and synced), then [`Outputs::commit`] renames them
+/// Files written together or not at all: [`StagedFiles::stage`] each (a temporary file
+/// beside the destination, written and synced), then [`StagedFiles::commit`] renames them
 /// all. Dropping it uncommitted removes the temporary files.
 #[derive(Default)]
-pub struct Outputs {
+pub struct StagedFiles {
     staged: Vec<Staged>,
 }
 
-impl Outputs {
+impl StagedFiles {
     /// No outputs yet.
     pub fn new() -> Self {
-        Outputs::default()
+        StagedFiles::default()
     }
 
     /// Writes `path`'s content through `fill` into a temporary file beside it. Errors are
@@ -201,7 +201,7 @@ impl Outputs {
     }
 }
 
-impl Drop for Outputs {
+impl Drop for StagedFiles {
     fn drop(&mut self) {
         for s in &self.staged {
             unregister(&s.tmp);
@@ -227,7 +227,7 @@ pub fn write_file_atomically(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    let mut out = Outputs::new();
+    let mut out = StagedFiles::new();
     out.stage(path, fill)?;
     out.commit().map_err(|(_, e)| e)
 }
@@ -239,7 +239,7 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), SliceError> {
 
 /// Stages `path` in `out`, with the slicer's error naming the user's file.
 pub fn stage(
-    out: &mut Outputs,
+    out: &mut StagedFiles,
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), SliceError> {
@@ -250,7 +250,7 @@ pub fn stage(
 }
 
 /// Commits `out`, with the slicer's error naming the user's file.
-pub fn commit(out: Outputs) -> Result<(), SliceError> {
+pub fn commit(out: StagedFiles) -> Result<(), SliceError> {
     out.commit()
         .map_err(|(path, source)| SliceError::Write { path, source })
 }
@@ -361,7 +361,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let a = dir.path().join("a.dlp");
         let b = dir.path().join("missing").join("b.png");
-        let mut out = Outputs::new();
+        let mut out = StagedFiles::new();
         out.stage(&a, |w| w.write_all(b"job")).unwrap();
         let e = stage(&mut out, &b, |w| w.write_all(b"png")).unwrap_err();
         let msg = e.to_string();

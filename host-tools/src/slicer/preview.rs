@@ -5,8 +5,9 @@
 //! heatmaps are not drawn here.
 
 use super::error::SliceError;
-use super::output::{stage, write_atomic, Outputs};
+use super::output::{stage, write_atomic, StagedFiles};
 use crate::figure;
+use dollop::command::walk::{walk, MoveKind};
 use dollop::Command;
 use image::{Rgb, RgbImage};
 use std::path::Path;
@@ -118,19 +119,11 @@ pub fn draw(commands: &[Command], start_um: [i32; 3], opts: &PreviewOptions) -> 
 /// Layers in a job that hold beads, numbered as the preview numbers them (from the first
 /// Z, each higher Z the next); a lift after the last bead is not a layer.
 pub fn layer_count(commands: &[Command], start_um: [i32; 3]) -> usize {
-    let mut z = start_um[2];
-    let (mut layer, mut last_printed) = (0usize, 0usize);
-    for c in commands {
-        match *c {
-            Command::Travel { z: tz, .. } | Command::Layer { z: tz } if tz > z => {
-                layer += 1;
-                z = tz;
-            }
-            Command::Print { .. } => last_printed = layer,
-            _ => {}
-        }
-    }
-    last_printed + 1
+    walk(commands, start_um)
+        .filter(|m| matches!(m.kind, MoveKind::Print { .. }))
+        .last()
+        .map_or(0, |m| m.layer as usize)
+        + 1
 }
 
 /// Most layers a multi-layer preview shows (evenly chosen, first and last included).
@@ -240,38 +233,18 @@ fn draw_plate(commands: &[Command], start_um: [i32; 3], opts: &PreviewOptions) -
         scale,
     };
     let r = (opts.bead_mm * scale / 2.0).max(0.7);
-    let mut at = [start_um[0] as f64 * 1e-3, start_um[1] as f64 * 1e-3];
     let mut travels = Vec::new();
     // Layers count from the first Z (the priming bead's); each higher Z is the next.
-    let mut layer = 0usize;
-    let mut z = start_um[2];
-    let shown = |layer: usize| opts.layer.is_none_or(|l| l == layer);
-    for c in commands {
-        match *c {
-            Command::Print { dx, dy, material } => {
-                let to = [at[0] + dx as f64 * 1e-3, at[1] + dy as f64 * 1e-3];
-                if shown(layer) {
-                    let col = MATERIAL_COLOURS[material as usize % MATERIAL_COLOURS.len()];
-                    cv.line(at, to, r, col);
-                }
-                at = to;
+    let shown = |layer: u32| opts.layer.is_none_or(|l| l == layer as usize);
+    let mm = |p: [i32; 3]| [p[0] as f64 * 1e-3, p[1] as f64 * 1e-3];
+    for m in walk(commands, start_um).filter(|m| shown(m.layer)) {
+        match m.kind {
+            MoveKind::Print { material } => {
+                let col = MATERIAL_COLOURS[material as usize % MATERIAL_COLOURS.len()];
+                cv.line(mm(m.from), mm(m.to), r, col);
             }
-            Command::Travel { x, y, z: tz } => {
-                if tz > z {
-                    layer += 1;
-                    z = tz;
-                }
-                let to = [x as f64 * 1e-3, y as f64 * 1e-3];
-                if shown(layer) {
-                    travels.push((at, to));
-                }
-                at = to;
-            }
-            Command::Layer { z: tz } if tz > z => {
-                layer += 1;
-                z = tz;
-            }
-            _ => {}
+            MoveKind::Travel => travels.push((mm(m.from), mm(m.to))),
+            MoveKind::Layer => {}
         }
     }
     if opts.travel {
@@ -306,7 +279,7 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), SliceError> {
 }
 
 /// Stages an RGB image as PNG for `path` in `out` (renamed when `out` is committed).
-pub fn stage_png(out: &mut Outputs, path: &Path, img: &RgbImage) -> Result<(), SliceError> {
+pub fn stage_png(out: &mut StagedFiles, path: &Path, img: &RgbImage) -> Result<(), SliceError> {
     stage(out, path, |w| encode_png(img, w))
 }
 

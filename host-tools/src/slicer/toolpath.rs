@@ -45,7 +45,7 @@ pub struct PathStats {
 
 /// A planned job before encoding.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Toolpath {
+pub struct PlannedPath {
     /// Commands, ending with `End`.
     pub commands: Vec<Command>,
     /// Where the head stands when the job begins (the priming bead's start), um.
@@ -63,11 +63,8 @@ pub fn transit_mm(machine: &Machine<f64, 4>) -> f64 {
     machine.v_transit().mm3::<f64>() / machine.bead_area
 }
 
-/// Millimetres to the jobs' integer micrometres, rounded to the nearest: the slicer's one
-/// conversion (the toolpath emitter and the markers use it).
-pub fn um(mm: f64) -> i32 {
-    (mm * 1000.0).round() as i32
-}
+/// Millimetres to the jobs' integer micrometres (the one conversion, `dollop_sim::um`).
+pub use dollop_sim::um;
 
 /// Builds commands as integer micrometres from absolute targets, so rounding never drifts.
 struct Emitter {
@@ -241,7 +238,7 @@ pub fn plan(
     config: &Config,
     machine: &Machine<f64, 4>,
     opts: &PathOptions,
-) -> Result<Toolpath, SliceError> {
+) -> Result<PlannedPath, SliceError> {
     let at = place(design, config, machine, opts)?;
     let mut e = Emitter {
         cmds: Vec::new(),
@@ -277,7 +274,7 @@ pub fn plan(
         rows.print_layer(&mut e, layer, z, &at, connect);
     }
     let initial = finish(&mut e, machine.motion.max_mm[2], initial);
-    let tp = Toolpath {
+    let tp = PlannedPath {
         commands: e.cmds,
         start_um: start,
         initial_material: initial,
@@ -463,7 +460,7 @@ fn emit_span(e: &mut Emitter, runs: &[Run], forward: bool, ox: f64, y: f64) {
 }
 
 /// Refuses a job that leaves the travel limits anywhere (an explicit origin can do that).
-fn check_travel(tp: &Toolpath, machine: &Machine<f64, 4>, what: &str) -> Result<(), SliceError> {
+fn check_travel(tp: &PlannedPath, machine: &Machine<f64, 4>, what: &str) -> Result<(), SliceError> {
     let (lo, hi) = super::job_file::bounds(&tp.commands, tp.start_um);
     let axes = ["X", "Y", "Z"];
     for a in 0..3 {

@@ -3,6 +3,7 @@
 //! decoded, then decoded to 8-bit grey, all of one size. Measuring them is `track`'s and
 //! `edges`' job.
 
+use super::super::error::CalOption;
 use super::super::CalError;
 use image::GrayImage;
 use std::path::{Path, PathBuf};
@@ -67,7 +68,7 @@ pub fn list(dir: &Path, max_frames: usize) -> Result<Vec<PathBuf>, CalError> {
                 "{} frames, over the limit of {max_frames} by {extra}",
                 max_frames + extra
             ),
-            option: "--max-frames",
+            option: CalOption::MaxFrames,
         });
     }
     if files.is_empty() {
@@ -125,7 +126,7 @@ pub fn check_sizes(files: &[PathBuf], dir: &Path, max_pixels: u64) -> Result<(u3
                 files.len(),
                 total - max_pixels
             ),
-            option: "--max-pixels",
+            option: CalOption::MaxPixels,
         });
     }
     Ok((w, h))

@@ -9,8 +9,9 @@ pub mod frames;
 pub mod synth;
 pub mod track;
 
+use super::error::{positive, CalOption};
 use super::format::{short, sig, toml_float};
-use super::output::Outputs;
+use super::output::StagedFiles;
 use super::plot::{self, Mark, Panel, Series};
 use super::savgol;
 use super::CalError;
@@ -122,14 +123,6 @@ pub fn parse_window(s: &str) -> Result<usize, String> {
     }
 }
 
-fn positive(name: &str, v: f64) -> Result<f64, CalError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(CalError::arg(format!("{name} {v} must be above zero")))
-    }
-}
-
 fn std_dev(v: &[f64], around: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -144,10 +137,10 @@ fn std_dev(v: &[f64], around: &[f64]) -> f64 {
 
 /// Reads the frames in `dir` and measures them.
 pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
-    let fps = positive("--fps", o.fps)?;
-    let scale = positive("--mm-per-px", o.mm_per_px)?;
+    let fps = positive(CalOption::Fps, o.fps)?;
+    let scale = positive(CalOption::MmPerPx, o.mm_per_px)?;
     if let Some(t) = o.target_width_mm {
-        positive("--target-width", t)?;
+        positive(CalOption::TargetWidth, t)?;
     }
     let files = frames::list(dir, o.limits.max_frames)?;
     if files.len() < 2 {
@@ -243,7 +236,7 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
         .as_ref()
         .map(|c| c.channel.nozzle_diameter_mm as f64));
     let die_swell = match nozzle {
-        Some(n) => Some((n, d_ex / positive("--nozzle-diameter", n)?)),
+        Some(n) => Some((n, d_ex / positive(CalOption::NozzleDiameter, n)?)),
         None => None,
     };
     let feed_forward = o.target_width_mm.map(|t| (t, v_ex * (d_ex / t).powi(2)));
@@ -414,7 +407,7 @@ impl Calibration {
     }
 
     /// Speed and width through the sequence, raw and smoothed.
-    pub fn plot(&self, path: &Path, fps: f64, out: &mut Outputs) -> Result<(), CalError> {
+    pub fn plot(&self, path: &Path, fps: f64, out: &mut StagedFiles) -> Result<(), CalError> {
         let t = |i: usize| i as f64 / fps;
         let speed = Panel {
             title: format!("extrusion speed: {} mm/s", sig(self.v_ex, 4)),

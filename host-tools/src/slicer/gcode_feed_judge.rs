@@ -38,27 +38,42 @@ pub(super) fn word(w: &str) -> Option<(char, f64)> {
         .map(|v| (c.to_ascii_uppercase(), v))
 }
 
+/// A move's word: X, Y or Z sets that coordinate of `to`, F (mm/min, above zero) the
+/// feed rate `f` (mm/s). False for any other word, left to the caller.
+pub(super) fn move_word(c: char, v: f64, to: &mut [f64; 3], f: &mut f64) -> bool {
+    match c {
+        'X' => to[0] = v,
+        'Y' => to[1] = v,
+        'Z' => to[2] = v,
+        'F' if v > 0.0 => *f = v / 60.0,
+        _ => return false,
+    }
+    true
+}
+
+/// Each G-code line's command word (upper case) and the words after it; comments (from
+/// `;`) and blank lines are skipped. Both judges read their G-code through it.
+pub(super) fn statements(
+    text: &str,
+) -> impl Iterator<Item = (String, std::str::SplitWhitespace<'_>)> {
+    text.lines().filter_map(|line| {
+        let mut words = line.split(';').next().unwrap_or("").split_whitespace();
+        words.next().map(|cmd| (cmd.to_ascii_uppercase(), words))
+    })
+}
+
 /// Parses the subset of RepRapFirmware G-code that `gcode::export` writes. Unknown lines
 /// and words are skipped.
 pub fn parse(text: &str) -> Vec<Op> {
     let mut ops = Vec::new();
     let mut pos = [0.0f64; 3];
     let mut f = 1.0f64;
-    for line in text.lines() {
-        let code = line.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
-        match cmd.to_ascii_uppercase().as_str() {
+    for (cmd, words) in statements(text) {
+        match cmd.as_str() {
             "G0" | "G1" => {
                 let mut to = pos;
-                for w in words {
-                    match word(w) {
-                        Some(('X', v)) => to[0] = v,
-                        Some(('Y', v)) => to[1] = v,
-                        Some(('Z', v)) => to[2] = v,
-                        Some(('F', v)) if v > 0.0 => f = v / 60.0,
-                        _ => {}
-                    }
+                for (c, v) in words.filter_map(word) {
+                    move_word(c, v, &mut to, &mut f);
                 }
                 ops.push(Op::Move { to, v: f });
                 pos = to;
