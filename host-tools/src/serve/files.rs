@@ -127,7 +127,13 @@ pub fn job_from_dlp(st: &AppState, name: &str, bytes: &[u8]) -> ApiResult<Arc<Jo
         (hi[1] as f64 - lo[1] as f64) / 1000.0,
     ];
     let stats = stats_of(&commands, header.start_um);
-    let body = job_file::encode_body(&commands);
+    // The body as the board receives it (a decoded job encodes back to the same bytes).
+    let (_, body) = job_file::encode(
+        &commands,
+        header.start_um,
+        header.initial_material,
+        &checked.config,
+    );
     let sliced = Sliced {
         header,
         commands,
