@@ -84,12 +84,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn cycle_once(&mut self) -> Result<Vol, Fault> {
         self.cycle += 1;
         if self.machine.syringes {
-            let running = self.model.commanded();
-            for (i, v) in self.plunger_vol.iter_mut().enumerate() {
-                if running & (1 << i) != 0 {
-                    *v += self.plunger_per_cycle[i];
-                }
-            }
+            self.displace_plungers();
         }
         let flow = self.model.step()?;
         self.last_q = flow.q;
@@ -135,22 +130,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 } => {
                     self.lost += dv_left;
                     dv_left = Vol::ZERO;
-                    let t = self.dt * R::from_u32(cycles32(cycles + 1));
-                    let d = trap.distance(t);
-                    for a in 0..3 {
-                        self.head_pos[a] = from[a] + dir[a] * d;
-                    }
-                    if t >= trap.duration() {
-                        self.plan.pop_front();
-                        self.phase = Phase::Idle;
+                    if self.travel_cycle(from, dir, trap, cycles) {
                         continue;
                     }
-                    self.phase = Phase::Travel {
-                        from,
-                        dir,
-                        trap,
-                        cycles: cycles + 1,
-                    };
                     break;
                 }
                 Phase::Dwell { left } => {
@@ -206,6 +188,41 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.decide_valves()?;
         }
         Ok(dv)
+    }
+
+    /// The syringes' displaced volume: each running plunger's volume per cycle. Inlined,
+    /// as the rest of `cycle_once`, whose one caller it is.
+    #[inline(always)]
+    fn displace_plungers(&mut self) {
+        let running = self.model.commanded();
+        for (i, v) in self.plunger_vol.iter_mut().enumerate() {
+            if running & (1 << i) != 0 {
+                *v += self.plunger_per_cycle[i];
+            }
+        }
+    }
+
+    /// One cycle of a travel move, `cycles` into it. Returns true when the move ended
+    /// and the next item should see this cycle too. Inlined, as `displace_plungers`.
+    #[inline(always)]
+    fn travel_cycle(&mut self, from: [R; 3], dir: [R; 3], trap: Trapezoid<R>, cycles: u64) -> bool {
+        let t = self.dt * R::from_u32(cycles32(cycles + 1));
+        let d = trap.distance(t);
+        for a in 0..3 {
+            self.head_pos[a] = from[a] + dir[a] * d;
+        }
+        if t >= trap.duration() {
+            self.plan.pop_front();
+            self.phase = Phase::Idle;
+            return true;
+        }
+        self.phase = Phase::Travel {
+            from,
+            dir,
+            trap,
+            cycles: cycles + 1,
+        };
+        false
     }
 
     /// Takes the next plan item when idle. Returns true if a new phase began that should
