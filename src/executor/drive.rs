@@ -1,0 +1,386 @@
+//! One control cycle of the plan: the flow model's step, then the head driven through the
+//! phases (print along the bead by volume, settle, travel, dwell, pause, park), plan items
+//! taken as each ends; and the step outputs for the head and the syringe plungers. Stops
+//! at the cycle: what the ramp window does with it is `ramp`'s.
+
+use super::plan::{Item, Seg};
+use super::{cycles32, park, Executor, Phase, PLAN_CAPACITY};
+use crate::config::Machine;
+use crate::motion::Trapezoid;
+use crate::outputs::{Axis, Outputs};
+use crate::real::Real;
+use crate::state::Fault;
+use crate::vol::Vol;
+
+impl<R: Real, const N: usize> Executor<R, N> {
+    /// Syringe plunger targets, steps.
+    pub(super) fn plunger_targets(&self) -> [i32; N] {
+        let mut t = [0i32; N];
+        if !self.machine.syringes {
+            return t;
+        }
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            if let Some(sy) = inlet.syringe {
+                t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
+            }
+        }
+        t
+    }
+
+    /// Steps for head position `target` over `cycles`.
+    #[inline(always)]
+    pub(super) fn move_head(
+        &mut self,
+        target: [R; 3],
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        self.steps
+            .move_over(target, cycles as u32, out)
+            .map_err(|e| Fault::StepRate {
+                axis: e.axis,
+                steps: e.steps,
+                max: e.max,
+            })
+    }
+
+    /// Syringe plungers (E axes): to the ramp window's current frame (`ramped`) or to the
+    /// volume displaced so far.
+    #[inline(always)]
+    pub(super) fn move_plungers(
+        &mut self,
+        ramped: bool,
+        cycles: u64,
+        out: &mut impl Outputs,
+    ) -> Result<(), Fault> {
+        if !self.machine.syringes {
+            return Ok(());
+        }
+        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+        for (i, inlet) in self.machine.inlets.iter().enumerate() {
+            let Some(sy) = inlet.syringe else { continue };
+            let target = if ramped {
+                self.ramp.current().plunger[i] as i64
+            } else {
+                plunger_steps(self.plunger_vol[i], sy.steps_per_mm3) as i64
+            };
+            let d = target - self.plunger_steps[i];
+            if d.unsigned_abs() > max {
+                return Err(Fault::StepRate {
+                    axis: Axis::E(i as u8),
+                    steps: d.unsigned_abs().min(u32::MAX as u64) as u32,
+                    max: max as u32,
+                });
+            }
+            if d != 0 {
+                out.step(Axis::E(i as u8), d > 0, d.unsigned_abs() as u32);
+                self.plunger_steps[i] = target;
+            }
+        }
+        Ok(())
+    }
+
+    /// Model, head and valve decisions for one cycle. Returns the volume extruded.
+    pub(super) fn cycle_once(&mut self) -> Result<Vol, Fault> {
+        self.cycle += 1;
+        if self.machine.syringes {
+            self.displace_plungers();
+        }
+        let flow = self.model.step()?;
+        self.last_q = flow.q;
+        let dv = flow.dv;
+        // Phases may hand over to the next within a cycle (end of bead -> travel ...);
+        // each hand-over consumes a plan item, so this is bounded by the plan's length.
+        let mut dv_left = dv;
+        for _ in 0..=PLAN_CAPACITY {
+            match self.phase {
+                Phase::Print { stopping } => {
+                    self.head += dv_left;
+                    dv_left = Vol::ZERO;
+                    if !self.follow_path(stopping, flow.q)? {
+                        break;
+                    }
+                }
+                Phase::Settle { cycles } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    let flow_done = !self.machine.motion.wait_for_flow_decay
+                        || (flow.q <= self.machine.q_stop && self.model.commanded() == 0);
+                    // A pause asked for waits here until the flow is at its rest flow
+                    // (never past the settle limit: that is the fault's business).
+                    let settled = flow_done
+                        && (!self.pause.requested
+                            || cycles >= self.settle_limit
+                            || self.rest_reached(flow.q));
+                    if settled {
+                        self.phase = Phase::Idle;
+                        continue;
+                    }
+                    if cycles > self.settle_limit {
+                        return Err(Fault::FlowDidNotStop);
+                    }
+                    self.phase = Phase::Settle { cycles: cycles + 1 };
+                    break;
+                }
+                Phase::Travel {
+                    from,
+                    dir,
+                    trap,
+                    cycles,
+                } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if self.travel_cycle(from, dir, trap, cycles) {
+                        continue;
+                    }
+                    break;
+                }
+                Phase::Dwell { left } => {
+                    self.lost += dv_left;
+                    if left <= 1 {
+                        self.plan.pop_front();
+                        self.phase = Phase::Idle;
+                    } else {
+                        self.phase = Phase::Dwell { left: left - 1 };
+                    }
+                    break;
+                }
+                Phase::Idle => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if !self.start_next()? {
+                        break;
+                    }
+                }
+                Phase::Pausing => {
+                    self.head += dv_left;
+                    dv_left = Vol::ZERO;
+                    if self.follow_pause(flow.q)? {
+                        continue;
+                    }
+                    break;
+                }
+                // Paused, the head holds still: what little still trickles below the
+                // stop threshold (micrometres of bead) stays at the pause point, unless
+                // a park moves the head away and back (valves shut).
+                Phase::Paused { .. } => {
+                    self.lost += dv_left;
+                    dv_left = Vol::ZERO;
+                    if self.pause.park.stage != park::ParkStage::None {
+                        self.park_cycle();
+                        // Back from a park between beads: the next item starts now.
+                        if matches!(self.phase, Phase::Idle) {
+                            continue;
+                        }
+                    }
+                    break;
+                }
+                Phase::Done | Phase::Aborted | Phase::Faulted(_) => {
+                    self.lost += dv_left;
+                    break;
+                }
+            }
+        }
+        if self.pause.requested && matches!(self.phase, Phase::Print { stopping: false }) {
+            self.pause_check();
+        }
+        if matches!(self.phase, Phase::Print { .. }) {
+            self.decide_valves()?;
+        }
+        Ok(dv)
+    }
+
+    /// The syringes' displaced volume: each running plunger's volume per cycle. Inlined,
+    /// as the rest of `cycle_once`, whose one caller it is.
+    #[inline(always)]
+    fn displace_plungers(&mut self) {
+        let running = self.model.commanded();
+        for (i, v) in self.plunger_vol.iter_mut().enumerate() {
+            if running & (1 << i) != 0 {
+                *v += self.plunger_per_cycle[i];
+            }
+        }
+    }
+
+    /// One cycle of a travel move, `cycles` into it. Returns true when the move ended
+    /// and the next item should see this cycle too. Inlined, as `displace_plungers`.
+    #[inline(always)]
+    fn travel_cycle(&mut self, from: [R; 3], dir: [R; 3], trap: Trapezoid<R>, cycles: u64) -> bool {
+        let t = self.dt * R::from_u32(cycles32(cycles + 1));
+        let d = trap.distance(t);
+        for a in 0..3 {
+            self.head_pos[a] = from[a] + dir[a] * d;
+        }
+        if t >= trap.duration() {
+            self.plan.pop_front();
+            self.phase = Phase::Idle;
+            return true;
+        }
+        self.phase = Phase::Travel {
+            from,
+            dir,
+            trap,
+            cycles: cycles + 1,
+        };
+        false
+    }
+
+    /// Takes the next plan item when idle. Returns true if a new phase began that should
+    /// see this cycle too.
+    fn start_next(&mut self) -> Result<bool, Fault> {
+        if self.pause.requested {
+            self.pause_between_beads();
+            return Ok(false);
+        }
+        let Some(item) = self.plan.front().copied() else {
+            if !self.begun || self.ended {
+                self.phase = if self.ended { Phase::Done } else { Phase::Idle };
+            }
+            return Ok(false);
+        };
+        match item {
+            Item::Seg(seg) => {
+                self.last_index = seg.index;
+                self.head = seg.u_start;
+                self.phase = Phase::Print { stopping: false };
+                // Open the valve of the material the cursor stands on.
+                self.want = Some(self.entry_material);
+                if self.sizing {
+                    self.size_ramp(Some(self.entry_material));
+                }
+                self.model.command(1 << self.entry_material);
+                self.stop.reset();
+                self.switch.reset();
+                Ok(false)
+            }
+            Item::Travel { to, index } => {
+                self.last_index = index;
+                let from = self.head_pos;
+                let mut delta = [R::ZERO; 3];
+                let mut len2 = R::ZERO;
+                for a in 0..3 {
+                    delta[a] = to[a] - from[a];
+                    len2 += delta[a] * delta[a];
+                }
+                let len = len2.sqrt();
+                if len <= R::of(1e-6) {
+                    self.head_pos = to;
+                    self.plan.pop_front();
+                    return Ok(true);
+                }
+                let mut dir = [R::ZERO; 3];
+                let mut v = self.machine.motion.travel_speed;
+                let mut acc = R::of(1e9);
+                for a in 0..3 {
+                    dir[a] = delta[a] / len;
+                    let c = dir[a].abs();
+                    if c > R::of(1e-9) {
+                        v = v.min(self.machine.motion.max_speed[a] / c);
+                        acc = acc.min(self.machine.motion.max_accel[a] / c);
+                    }
+                }
+                self.phase = Phase::Travel {
+                    from,
+                    dir,
+                    trap: Trapezoid::new(len, v, acc),
+                    cycles: 0,
+                };
+                Ok(false)
+            }
+            Item::Dwell { cycles, index } => {
+                self.last_index = index;
+                self.phase = Phase::Dwell { left: cycles };
+                Ok(false)
+            }
+            Item::End { index } => {
+                self.last_index = index;
+                self.plan.pop_front();
+                self.phase = Phase::Done;
+                Ok(false)
+            }
+        }
+    }
+
+    /// Moves the head to plan volume `self.head` along the current bead. Returns true
+    /// when the bead ended and the next phase should run this cycle. Inlined into the
+    /// tick's print path (a pause's tail calls it too, out of line).
+    #[inline(always)]
+    pub(super) fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
+        let inv_s = self.inv_s;
+        let q_stop = self.machine.q_stop;
+        let shut = self.model.commanded() == 0;
+        for _ in 0..PLAN_CAPACITY {
+            let Some(Item::Seg(seg)) = self.plan.front() else {
+                // Printing with no segment queued: the feeder fell behind.
+                return Err(Fault::Underrun);
+            };
+            self.last_index = seg.index;
+            let past = self.head >= seg.u_end;
+            // A tail that ran out short of the end: the rest is within the stop threshold.
+            let tail_done = seg.last && stopping && q <= q_stop && shut;
+            if past || tail_done {
+                if seg.last {
+                    let seg = *seg;
+                    self.end_bead(seg, stopping);
+                    return Ok(true);
+                }
+                self.plan.pop_front();
+                if self.plan.is_empty() {
+                    return Err(Fault::Underrun);
+                }
+                continue;
+            }
+            let off = (self.head - seg.u_start).mm3::<R>() * inv_s;
+            if off <= seg.len {
+                self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
+                self.head_pos[1] = seg.start[1] + seg.dir[1] * off;
+            } else if let Some(f) = &seg.fillet {
+                let p = f.point((off - seg.len).min(f.length()));
+                self.head_pos[0] = p[0];
+                self.head_pos[1] = p[1];
+            }
+            return Ok(false);
+        }
+        Ok(false)
+    }
+
+    fn end_bead(&mut self, seg: Seg<R>, stopping: bool) {
+        if !stopping || self.model.commanded() != 0 {
+            self.model.command(0);
+            self.want = None;
+        }
+        // Volume past the end stays where the head stops.
+        if self.head > seg.u_end {
+            self.lost += self.head - seg.u_end;
+        }
+        // The head stays where the paste ran out: a tail that delivered less than the
+        // bead's rest leaves it a little short, rather than jumping the gap dry. The plan
+        // clock moves on to the end so the next bead's boundaries keep their volumes.
+        if self.head < seg.u_end {
+            self.short = self.short.max(seg.u_end - self.head);
+        }
+        self.head = seg.u_end;
+        self.ends.pop_front();
+        self.plan.pop_front();
+        self.switch.reset();
+        self.stop.reset();
+        self.phase = Phase::Settle { cycles: 0 };
+    }
+}
+
+/// Cycles a bead's end may take to settle before the flow counts as not stopping.
+pub(super) fn settle_limit<R: Real, const N: usize>(machine: &Machine<R, N>) -> u64 {
+    // Ten times the slowest line's dead time plus eight time constants, at least 1 s.
+    let mut s = R::ONE;
+    for i in machine.inlets.iter() {
+        s = s.max(R::of(10.0) * (i.close_delay_s + R::of(8.0) * i.decay_s));
+    }
+    (s / machine.dt()).round_i64().max(1) as u64
+}
+
+/// A plunger's step target for the volume it displaced. Step counts fit i32 (2^31 steps
+/// is a thousand litres); beyond, the saturated target becomes a step-rate fault.
+#[inline]
+fn plunger_steps<R: Real>(v: Vol, steps_per_mm3: R) -> i32 {
+    (v.mm3::<R>() * steps_per_mm3).round_i32()
+}

@@ -1,0 +1,264 @@
+//! Valve decisions while printing: the switch and stop predictions (`Tracker`), the
+//! cursor that runs ahead of the head by the lead window, the ramp window sized at each
+//! decision, and the valve outputs. Stops at the decision: the flow model carries it out.
+
+use super::plan::Item;
+use super::{cycles32, Executor, Phase, PREDICT_BUDGET, PREDICT_INTERVAL};
+use crate::config::Machine;
+use crate::flow_model::predict::{Goal, Outcome, Prediction};
+use crate::flow_model::FlowModel;
+use crate::motion::V2;
+use crate::outputs::Outputs;
+use crate::real::Real;
+use crate::state::Fault;
+use crate::vol::Vol;
+
+/// Tracks predictions of one kind and extrapolates their answer to the present.
+#[derive(Clone, Debug)]
+pub(super) struct Tracker<R, const N: usize> {
+    goal: Option<Goal>,
+    pred: Prediction<R, N>,
+    running: bool,
+    last: Option<(u64, R)>,
+    prev: Option<(u64, R)>,
+    /// Change of the answer per cycle between the last two predictions (0 with one).
+    slope: R,
+}
+
+impl<R: Real, const N: usize> Tracker<R, N> {
+    pub(super) const fn new() -> Self {
+        Tracker {
+            goal: None,
+            pred: Prediction::new(),
+            running: false,
+            last: None,
+            prev: None,
+            slope: R::ZERO,
+        }
+    }
+    /// Forgets everything; field by field, as moving the prediction is dearer than this.
+    pub(super) fn reset(&mut self) {
+        self.goal = None;
+        self.running = false;
+        self.last = None;
+        self.prev = None;
+        self.slope = R::ZERO;
+    }
+    /// The current answer for `goal`: the last two predictions extrapolated to the
+    /// present (a new goal forgets the old one's).
+    pub(super) fn answer(&mut self, model: &FlowModel<R, N>, goal: Goal) -> Option<R> {
+        if self.goal != Some(goal) {
+            self.reset();
+            self.goal = Some(goal);
+        }
+        let (t1, v1) = self.last?;
+        // A lead changes because time passes; it cannot change faster than the flow
+        // itself, which bounds a slope taken across a jump in the state.
+        let cap = model.q() * model.dt();
+        let slope = self.slope.max(-cap).min(cap);
+        let since = R::from_u32(cycles32(model.next_cycle() - t1));
+        Some((v1 + slope * since).max(R::ZERO))
+    }
+
+    /// One unit of work (a restart or half a chunk) on the goal of the last `answer`.
+    /// Done after the cycle's decision, so a cycle that acts on an answer (and so forgets
+    /// the prediction) spends nothing on it.
+    pub(super) fn work(&mut self, model: &FlowModel<R, N>) {
+        let Some(goal) = self.goal else { return };
+        let now = model.next_cycle();
+        if !self.running && self.last.is_none_or(|(t, _)| now >= t + PREDICT_INTERVAL) {
+            self.pred.restart(model, goal);
+            self.running = true;
+        } else if self.running {
+            if let Some(outcome) = self.pred.advance(model, PREDICT_BUDGET) {
+                self.running = false;
+                let at = self.pred.start_cycle();
+                match outcome {
+                    Outcome::Volume(v) => {
+                        self.prev = self.last;
+                        self.last = Some((at, v));
+                        // The slope between the last two answers, worked out once here
+                        // rather than in every cycle's `answer`.
+                        self.slope = match self.prev {
+                            Some((t0, v0)) if at > t0 => (v - v0) / R::from_u32(cycles32(at - t0)),
+                            _ => R::ZERO,
+                        };
+                    }
+                    Outcome::Never => {
+                        self.prev = None;
+                        self.last = None;
+                        self.slope = R::ZERO;
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl<R: Real, const N: usize> Executor<R, N> {
+    /// Valves as decided.
+    #[inline(always)]
+    pub(super) fn set_valves(&mut self, mask: u32, out: &mut impl Outputs) {
+        if mask != self.valves_out {
+            for i in 0..self.machine.inlet_count() {
+                let bit = 1u32 << i;
+                if (mask ^ self.valves_out) & bit != 0 {
+                    out.valve(i as u8, mask & bit != 0);
+                }
+            }
+            self.valves_out = mask;
+        }
+    }
+
+    /// Valve decisions while printing: switch material when the cursor (head + transit
+    /// volume + predicted switch lead) reaches the next boundary; stop the flow when the
+    /// head plus the predicted tail reaches the bead's end.
+    pub(super) fn decide_valves(&mut self) -> Result<(), Fault> {
+        if !matches!(self.phase, Phase::Print { .. }) {
+            return Ok(());
+        }
+        let entry = self.head + self.machine.v_transit();
+        // Of several boundaries already behind the cursor only the last still matters.
+        // They are in plan order, so while the first is ahead none is behind (the usual
+        // case, checked without walking the queue).
+        while self.boundaries.front().is_some_and(|b| b.0 <= entry)
+            && self.boundaries.iter().nth(1).is_some_and(|b| b.0 <= entry)
+        {
+            self.boundaries.pop_front();
+        }
+        if let Some(known) = self.known_to {
+            if known < entry + self.window {
+                return Err(if self.room() == 0 {
+                    Fault::LookaheadFull
+                } else {
+                    Fault::Underrun
+                });
+            }
+        }
+        // Material switch.
+        let mut switched = false;
+        if let Some(&(u_b, m)) = self.boundaries.front() {
+            if m == self.entry_material {
+                // Already the material entering: nothing to switch.
+                if entry >= u_b {
+                    self.boundaries.pop_front();
+                }
+            } else if entry + self.window >= u_b {
+                // Behind the cursor already (job start, or a lead the prediction missed):
+                // switch at once; otherwise when the predicted lead says so.
+                let due = entry >= u_b
+                    || self
+                        .switch
+                        .answer(&self.model, Goal::Switch(m))
+                        .is_some_and(|lead| entry + Vol::from_mm3(lead) >= u_b);
+                if !due && self.work(0) {
+                    self.switch.work(&self.model);
+                }
+                if due {
+                    if self.sizing {
+                        self.size_ramp(Some(m));
+                    }
+                    self.model.command(1 << m);
+                    self.want = Some(m);
+                    self.entry_material = m;
+                    self.boundaries.pop_front();
+                    self.switch.reset();
+                    self.stop.reset();
+                    switched = true;
+                }
+            }
+        }
+        // End of the bead.
+        if let Some(end) = self.bead_end() {
+            if self.model.commanded() != 0 && self.head + self.window >= end {
+                let due = self
+                    .stop
+                    .answer(&self.model, Goal::Stop)
+                    .is_some_and(|tail| self.head + Vol::from_mm3(tail) >= end);
+                if due {
+                    if self.sizing {
+                        self.size_ramp(None);
+                    }
+                    self.model.command(0);
+                    self.want = None;
+                    self.phase = Phase::Print { stopping: true };
+                    self.stop.reset();
+                } else if self.work(1) && !switched {
+                    self.stop.work(&self.model);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
+    /// it opens, none to stop): once per decision, from the channel's contents now
+    /// (`crate::switch_window`); the machine's window where those do not say.
+    #[inline(never)]
+    pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
+        let (head, inv_s) = (self.head, self.inv_s);
+        let seg = |i: &Item<R>| match i {
+            Item::Seg(s) => Some(*s),
+            _ => None,
+        };
+        let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
+        // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
+        let turns = (self.plan.iter().map_while(seg))
+            .zip(self.plan.iter().skip(1).map_while(seg))
+            .take_while(|(a, _)| !a.last)
+            .filter_map(|(a, b)| {
+                let f = a.fillet?;
+                Some(crate::switch_window::Turn {
+                    at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
+                    radius: f.radius.to_f32(),
+                    from: f2(a.dir),
+                    to: f2(b.dir),
+                })
+            });
+        let h = crate::switch_window::switch_half(
+            &self.machine,
+            &self.model,
+            self.model.commanded(),
+            opening,
+            turns,
+        )
+        .unwrap_or(self.machine.ramp_cycles / 2);
+        self.ramp.set_goal(h);
+    }
+
+    /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs
+    /// this cycle. The kinds take turns; a cycle whose flow step took its slow path
+    /// (a slug start crossing the exit or landing) does none, nor does one that
+    /// commanded a switch or a stop, so that the dearest steps and a prediction unit never
+    /// share a cycle. These come a few times per material change, so the predictions lose
+    /// a unit or two per switch.
+    pub(super) fn work(&self, parity: u64) -> bool {
+        self.cycle % 2 == parity && !self.model.crossed()
+    }
+
+    /// Plan volume where the current bead ends, if its last segment is planned.
+    pub(super) fn bead_end(&self) -> Option<Vol> {
+        self.ends.front().copied()
+    }
+}
+
+/// How far ahead of a boundary (as volume) predictions start: the most that can flow at
+/// top speed during the slowest valve's dead time plus eight time constants (or a
+/// syringe's time to 90 % response), plus 2 ms.
+pub(super) fn lead_window<R: Real, const N: usize>(m: &Machine<R, N>) -> Vol {
+    let mut t = R::of(0.002);
+    let mut worst = R::ZERO;
+    for i in m.inlets.iter() {
+        let d = match i.syringe.filter(|_| m.syringes) {
+            // A syringe's switch and its tail are over well before 90 % of its response.
+            Some(sy) => R::of(libm::pow(
+                core::f64::consts::LN_10 / sy.lag_k.to_f64(),
+                1.0 / sy.lag_n.to_f64(),
+            )),
+            None => i.open_delay_s.max(i.close_delay_s) + R::of(8.0) * i.rise_s.max(i.decay_s),
+        };
+        worst = worst.max(d);
+    }
+    t += worst;
+    Vol::from_mm3(m.v_flow_max * m.bead_area * t)
+}
