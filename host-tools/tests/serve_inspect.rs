@@ -130,6 +130,18 @@ fn open_job(addr: SocketAddr) -> u64 {
     v["id"].as_u64().unwrap_or_else(|| panic!("{v}"))
 }
 
+/// A dashboard on `data` with `camera`: the chessboard's job opened, then inspected.
+async fn inspect_with(data: &Path, camera: Option<String>) -> (u16, Value) {
+    let r = serve::start(args(data, camera)).await.unwrap();
+    let addr = r.addr;
+    tokio::task::spawn_blocking(move || {
+        let id = open_job(addr);
+        post_json(addr, "/api/inspect", serde_json::json!({ "job": id }))
+    })
+    .await
+    .unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_print_is_inspected_from_the_camera() {
     let cam = camera();
@@ -138,14 +150,7 @@ async fn a_print_is_inspected_from_the_camera() {
         (format!("http://{cam}/snap.jpg"), "snapshot"),
         (format!("http://{cam}/stream"), "MJPEG stream"),
     ] {
-        let r = serve::start(args(data.path(), Some(url))).await.unwrap();
-        let addr = r.addr;
-        let (code, v) = tokio::task::spawn_blocking(move || {
-            let id = open_job(addr);
-            post_json(addr, "/api/inspect", serde_json::json!({ "job": id }))
-        })
-        .await
-        .unwrap();
+        let (code, v) = inspect_with(data.path(), Some(url)).await;
         assert_eq!(code, 200, "{what}: {v}");
         let report = v["report"].as_str().unwrap();
         assert!(
@@ -186,14 +191,7 @@ async fn a_missing_camera_is_refused_in_words() {
             "http:// only",
         ),
     ] {
-        let r = serve::start(args(data.path(), camera)).await.unwrap();
-        let addr = r.addr;
-        let (code, v) = tokio::task::spawn_blocking(move || {
-            let id = open_job(addr);
-            post_json(addr, "/api/inspect", serde_json::json!({ "job": id }))
-        })
-        .await
-        .unwrap();
+        let (code, v) = inspect_with(data.path(), camera).await;
         assert_eq!(code, 400, "{v}");
         assert!(v.to_string().contains(needle), "{needle}: {v}");
     }

@@ -449,25 +449,11 @@ pub struct Upload {
 /// no leading dots), keeping the extension the reader goes by; `fallback` if nothing is
 /// left.
 pub(super) fn safe_name(name: &str, fallback: &str) -> String {
-    let base = Path::new(name)
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or("");
-    let clean: String = base
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "._-".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    let clean = clean.trim_start_matches('.');
+    let clean = super::store::plain_name(name);
     if clean.is_empty() {
         fallback.to_string()
     } else {
-        clean.to_string()
+        clean
     }
 }
 

@@ -54,10 +54,10 @@ pub struct Folder {
     what: &'static str,
 }
 
-/// `name` made safe: its last path part, characters outside letters, digits and `._-`
-/// replaced by `_`, leading dots dropped; refused when nothing is left, it is too long,
-/// or its extension is not one `kinds` takes.
-pub fn clean_name(name: &str, kinds: &[&str]) -> ApiResult<String> {
+/// The last part of `name` (after any `/` or backslash, as a browser on any system may send it),
+/// with characters other than letters, digits and `._-` replaced by `_` and leading dots
+/// dropped: a name that cannot leave the folder it is written in. May be empty.
+pub fn plain_name(name: &str) -> String {
     let base = name.rsplit(['/', '\\']).next().unwrap_or("");
     let clean: String = base
         .chars()
@@ -69,7 +69,14 @@ pub fn clean_name(name: &str, kinds: &[&str]) -> ApiResult<String> {
             }
         })
         .collect();
-    let clean = clean.trim_start_matches('.').to_string();
+    clean.trim_start_matches('.').to_string()
+}
+
+/// `name` made safe: its last path part, characters outside letters, digits and `._-`
+/// replaced by `_`, leading dots dropped (`plain_name`); refused when nothing is left, it is too long,
+/// or its extension is not one `kinds` takes.
+pub fn clean_name(name: &str, kinds: &[&str]) -> ApiResult<String> {
+    let clean = plain_name(name);
     if clean.is_empty() {
         return Err(ApiError::bad(format!(
             "{name:?}: give the file a name (letters, digits, . _ -)"
