@@ -37,53 +37,38 @@ pub fn routes() -> Router<Arc<AppState>> {
         .route("/api/boards/{id}/trend", get(trend))
 }
 
-/// Distance and counts of a decoded job's commands (a `.dlp` carries no statistics).
+/// Distance and counts of a decoded job's commands (a `.dlp` carries no statistics), over
+/// the job's moves as `command::walk` gives them.
 fn stats_of(commands: &[Command], start_um: [i32; 3]) -> PathStats {
+    use dollop::command::{walk, MoveKind};
+    let mm = |a: [i32; 3], b: [i32; 3]| -> f64 {
+        let d = [0, 1, 2].map(|k| (b[k] as f64 - a[k] as f64) / 1000.0);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
     let mut s = PathStats::default();
-    let mut at = start_um.map(|v| v as f64 / 1000.0);
     let mut material = None;
     let mut printing = false;
     let mut layers = std::collections::BTreeSet::new();
-    for c in commands {
-        match *c {
-            Command::Print {
-                dx,
-                dy,
-                material: m,
-                ..
-            } => {
-                let (x, y) = (dx as f64 / 1000.0, dy as f64 / 1000.0);
-                s.print_mm += x.hypot(y);
+    for m in walk(commands, start_um) {
+        match m.kind {
+            MoveKind::Print { material: now } => {
+                s.print_mm += mm(m.from, m.to);
                 s.print_segments += 1;
-                at[0] += x;
-                at[1] += y;
-                if material.is_some_and(|p| p != m) {
+                if material.is_some_and(|p| p != now) {
                     s.switches += 1;
                 }
-                material = Some(m);
+                material = Some(now);
                 if !printing {
                     s.beads += 1;
                 }
                 printing = true;
-                layers.insert((at[2] * 1000.0).round() as i64);
+                layers.insert(m.to[2]);
             }
-            Command::Travel { x, y, z } => {
-                let to = [x, y, z].map(|v| v as f64 / 1000.0);
-                s.travel_mm +=
-                    ((to[0] - at[0]).powi(2) + (to[1] - at[1]).powi(2) + (to[2] - at[2]).powi(2))
-                        .sqrt();
+            MoveKind::Travel | MoveKind::Layer => {
+                s.travel_mm += mm(m.from, m.to);
                 s.travels += 1;
-                at = to;
                 printing = false;
             }
-            Command::Layer { z } => {
-                let z = z as f64 / 1000.0;
-                s.travel_mm += (z - at[2]).abs();
-                s.travels += 1;
-                at[2] = z;
-                printing = false;
-            }
-            _ => {}
         }
     }
     s.layers = layers.len();
