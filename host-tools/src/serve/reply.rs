@@ -1,6 +1,6 @@
 //! How the handlers answer: blocking work run off the async threads, a job as the pages
-//! read it, a file as a download. Shared by `routes`, `files` and `octoprint`; no
-//! handler lives here.
+//! read it, a file as a download, a picture as PNG. Shared by `routes`, `files`,
+//! `octoprint` and `snapshot`; no handler lives here.
 
 use super::design;
 use super::error::{ApiError, ApiResult};
@@ -91,4 +91,19 @@ pub fn download(name: String, bytes: Vec<u8>) -> Response {
         bytes,
     )
         .into_response()
+}
+
+/// A picture as PNG bytes.
+pub fn png(img: &image::RgbImage) -> ApiResult<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
+    Ok(out)
 }

@@ -211,20 +211,6 @@ async fn job_get(State(st): St, Path(id): Path<u64>) -> ApiResult<Response> {
     Ok(job_json(&e))
 }
 
-fn png(img: &image::RgbImage) -> ApiResult<Vec<u8>> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
-    Ok(out)
-}
-
 async fn job_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiResult<Response> {
     let e = job_of(&st, id)?;
     let stem = stem(&e);
@@ -244,7 +230,7 @@ async fn job_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiRe
                         ..Default::default()
                     },
                 );
-                png(&img)
+                super::reply::png(&img)
             })
             .await?;
             Ok(download(format!("{stem}-toolpath.png"), bytes))

@@ -169,10 +169,7 @@ fn measure(job: &super::jobs::JobEntry, picture: &[u8]) -> ApiResult<Value> {
     let sug = suggest::suggest(&ins, &job.config, &sim_job);
     let img = inspect::picture::figure(&ins)
         .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
-    let mut png = Vec::new();
-    image::DynamicImage::ImageRgb8(img)
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
+    let png = super::reply::png(&img)?;
     Ok(json!({
         "job": s.name,
         "report": ins.report(&names),
