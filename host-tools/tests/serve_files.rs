@@ -6,7 +6,9 @@
 //! posts `select`, `print` and `file` to the same place), the key refused and accepted, a
 //! bad file refused naming it; the Files API (a `.dlp` decoded, a broken one refused,
 //! delete, no way out of the folder), configs saved by name, the console, and all of it
-//! again from a second server on the same `--data`. Plus the octorest client library from
+//! again from a second server on the same `--data`. Cura's OctoPrint plugin end to end on a
+//! simulated board: its connect polls, select-and-print, the monitor's pause, resume,
+//! cancel, home and jog, refusals in plain text. Plus the octorest client library from
 //! PyPI (skipped with a message when it is not installed, except under CI).
 
 use dollop_host::serve;
@@ -41,6 +43,18 @@ fn request(
     headers: &[&str],
     body: &[u8],
 ) -> (u16, Vec<u8>) {
+    let (code, _, body) = request_full(addr, method, path, headers, body);
+    (code, body)
+}
+
+/// One request (`Connection: close`): the status, the head (lower case) and the body.
+fn request_full(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &[u8],
+) -> (u16, String, Vec<u8>) {
     let mut s = TcpStream::connect(addr).expect("connects");
     s.set_read_timeout(Some(std::time::Duration::from_secs(60)))
         .expect("timeout");
@@ -58,20 +72,17 @@ fn request(
         .windows(4)
         .position(|w| w == b"\r\n\r\n")
         .expect("a head");
-    let head = String::from_utf8_lossy(&all[..head_end]).into_owned();
+    let head = String::from_utf8_lossy(&all[..head_end]).to_ascii_lowercase();
     let code = head
         .split(' ')
         .nth(1)
         .and_then(|c| c.parse().ok())
         .expect("a status");
     let mut body = all[head_end + 4..].to_vec();
-    if head
-        .to_ascii_lowercase()
-        .contains("transfer-encoding: chunked")
-    {
+    if head.contains("transfer-encoding: chunked") {
         body = unchunk(&body);
     }
-    (code, body)
+    (code, head, body)
 }
 
 fn unchunk(mut b: &[u8]) -> Vec<u8> {
@@ -228,15 +239,14 @@ async fn slicer_uploads_files_and_configs_survive_a_restart() {
             std::thread::sleep(std::time::Duration::from_millis(100));
         }
 
-        // A bad file is refused with a message naming it, and not kept.
+        // A bad file is refused with a message naming it, and not kept: plain text, the
+        // one body Cura's plugin shows (and PrusaSlicer shows as it is).
         let (ct, body) = multipart(&[("file", Some("bin.gcode"), &[0xff, 0xfe, 0x00])]);
-        let (code, resp) = request(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        let (code, head, resp) = request_full(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
         assert_eq!(code, 400);
+        assert!(head.contains("content-type: text/plain\r\n"), "{head}");
         assert!(
-            json(&resp)["error"]
-                .as_str()
-                .unwrap_or("")
-                .contains("bin.gcode"),
+            String::from_utf8_lossy(&resp).contains("bin.gcode"),
             "{}",
             String::from_utf8_lossy(&resp)
         );
@@ -457,4 +467,157 @@ except RuntimeError as e:
     );
     assert!(text.contains("refused"), "{text}");
     assert!(data.path().join("files/octorest-square.gcode").is_file());
+}
+
+/// Waits up to a minute for board 0's view to satisfy `ok`.
+fn wait_for(st: &serve::state::AppState, what: &str, ok: impl Fn(&serve::view::View) -> bool) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let v = st.boards[0].view.borrow().clone();
+        if ok(&v) {
+            return;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "{what} never came: {} ({:?})",
+            v.activity,
+            v.message
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+/// Cura's OctoPrint plugin, request by request as its source sends them
+/// (`OctoPrintOutputDevice.py`): the connect sequence and the fields its handlers index
+/// (a missing one is a Python `KeyError` there), an upload without `print` then
+/// `select` + `print` on the `Location` it was given, the monitor's pause, resume and
+/// cancel, its jog (`G91`, `G0 ... F`, `G90`) and anything else refused in plain text; an
+/// upload to a folder naming no board is refused and keeps nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cura_s_octoprint_plugin_connects_prints_pauses_and_jogs() {
+    let data = tempfile::tempdir().expect("folder");
+    // Real time, so that the print is still running when the pause comes.
+    let mut a = args(data.path(), false);
+    a.sim_speed = 1.0;
+    let r = serve::start(a).await.expect("starts");
+    let (a, st) = (r.addr, r.state.clone());
+    tokio::task::spawn_blocking(move || {
+        let (code, body) = get(a, "/api/settings");
+        assert_eq!(code, 200);
+        assert!(json(&body)["webcam"]["streamUrl"].is_string());
+        let (code, body) = get(a, "/api/printerprofiles");
+        assert_eq!(code, 200);
+        let p = &json(&body)["profiles"]["_default"];
+        assert_eq!(p["current"], true, "{p}");
+        assert!(p["name"].is_string() && p["model"].is_string(), "{p}");
+        wait_for(&st, "the board's link", |v| v.connected);
+        let (code, body) = get(a, "/api/printer");
+        assert_eq!(code, 200);
+        let flags = &json(&body)["state"]["flags"];
+        for f in [
+            "error",
+            "closedOrError",
+            "paused",
+            "pausing",
+            "printing",
+            "cancelling",
+            "ready",
+            "operational",
+        ] {
+            assert!(flags[f].is_boolean(), "{f}: {flags}");
+        }
+        let (code, body) = get(a, "/api/job");
+        assert_eq!(code, 200);
+        let j = json(&body);
+        assert!(j["state"].is_string(), "{j}");
+        assert!(j["job"]["file"].get("name").is_some(), "{j}");
+        for k in ["printTime", "printTimeLeft", "completion"] {
+            assert!(j["progress"].get(k).is_some(), "{k}: {j}");
+        }
+
+        // Upload only; then select and print on the Location given.
+        let (ct, body) = multipart(&[
+            ("path", None, b""),
+            ("file", Some("square.gcode"), SQUARE.as_bytes()),
+        ]);
+        let (code, head, _) = request_full(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        assert_eq!(code, 201);
+        let location = head
+            .lines()
+            .find_map(|l| l.strip_prefix("location: "))
+            .expect("a Location")
+            .trim()
+            .to_string();
+        assert_eq!(location, "/api/files/local/square.gcode");
+        let post = |path: &str, body: &str| {
+            request_full(
+                a,
+                "POST",
+                path,
+                &[AUTH, "Content-Type: application/json"],
+                body.as_bytes(),
+            )
+        };
+        let (code, _, resp) = post(&location, r#"{"command": "select", "print": true}"#);
+        assert_eq!(code, 204, "{}", String::from_utf8_lossy(&resp));
+        wait_for(&st, "the print", |v| {
+            v.mode == Some(dollop::wire::Mode::Job) && v.activity.starts_with("printing")
+        });
+
+        // The monitor's buttons.
+        let (code, _, resp) = post("/api/job", r#"{"command": "pause", "action": "pause"}"#);
+        assert_eq!(code, 204, "{}", String::from_utf8_lossy(&resp));
+        wait_for(&st, "the pause", |v| v.activity.starts_with("paused"));
+        let (code, body) = get(a, "/api/job");
+        assert_eq!((code, json(&body)["state"].as_str()), (200, Some("Paused")));
+        let (code, _, resp) = post("/api/job", r#"{"command": "pause"}"#);
+        assert_eq!(code, 204, "toggle: {}", String::from_utf8_lossy(&resp));
+        wait_for(&st, "the resumed print", |v| {
+            !v.activity.starts_with("paused")
+        });
+        let (code, _, resp) = post("/api/job", r#"{"command": "cancel"}"#);
+        assert_eq!(code, 204, "{}", String::from_utf8_lossy(&resp));
+        wait_for(&st, "the end of the job", |v| {
+            v.mode != Some(dollop::wire::Mode::Job)
+        });
+
+        // Jog and home as Cura's controller sends them: after the cancel the board wants
+        // homing first, and says so to the slicer; anything else refused, naming the line.
+        let jog = r#"{"commands": ["G91", "G0 X1 Y0 Z0 F6000", "G90"]}"#;
+        let (code, head, resp) = post("/api/printer/command", jog);
+        assert_eq!(code, 409, "{}", String::from_utf8_lossy(&resp));
+        assert!(head.contains("content-type: text/plain\r\n"), "{head}");
+        assert!(String::from_utf8_lossy(&resp).contains("not homed"));
+        let (code, _, resp) = post("/api/printer/command", r#"{"command": "G28 X Y"}"#);
+        assert_eq!(code, 204, "{}", String::from_utf8_lossy(&resp));
+        let x = st.boards[0].view.borrow().position[0];
+        let (code, _, resp) = post("/api/printer/command", jog);
+        assert_eq!(code, 204, "{}", String::from_utf8_lossy(&resp));
+        wait_for(&st, "the jog", |v| (v.position[0] - x - 1.0).abs() < 0.01);
+        let (code, head, resp) = post("/api/printer/command", r#"{"commands": ["M104 S200"]}"#);
+        assert_eq!(code, 400);
+        assert!(head.contains("content-type: text/plain\r\n"), "{head}");
+        assert!(String::from_utf8_lossy(&resp).contains("M104 S200"));
+        let (code, _, _) = post("/api/job", r#"{"command": "explode"}"#);
+        assert_eq!(code, 400);
+        let (code, _, _) = post("/api/job", "not json");
+        assert_eq!(code, 400);
+
+        // A print into a folder that names no board: refused before anything is kept.
+        let (ct, body) = multipart(&[
+            ("path", None, b"the other printer"),
+            ("print", None, b"true"),
+            ("file", Some("elsewhere.gcode"), SQUARE.as_bytes()),
+        ]);
+        let (code, _, resp) = request_full(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+        assert_eq!(code, 400);
+        assert!(
+            String::from_utf8_lossy(&resp).contains("no board named"),
+            "{}",
+            String::from_utf8_lossy(&resp)
+        );
+        assert!(!names(a).iter().any(|(n, _)| n == "elsewhere.gcode"));
+    })
+    .await
+    .expect("Cura's requests");
 }

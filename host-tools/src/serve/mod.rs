@@ -20,6 +20,7 @@ pub mod history;
 pub mod jobs;
 pub mod lock;
 pub mod octoprint;
+pub mod octoprint_control;
 pub mod reply;
 pub mod routes;
 pub mod samples;

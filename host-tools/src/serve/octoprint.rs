@@ -1,15 +1,20 @@
 //! The subset of OctoPrint's REST API that slicers' "send to printer" speaks
-//! (PrusaSlicer's OctoPrint host, Cura's OctoPrint connection, client libraries such as
+//! (PrusaSlicer's OctoPrint host, Cura's OctoPrint plugin, client libraries such as
 //! octorest): `GET /api/version` and `/api/server` (what they probe first), `/api/settings`,
-//! `/api/printer` and `/api/job` (what Cura polls), `GET /api/files[/local[/NAME]]`, and
-//! `POST /api/files/local` multipart with `file`, `path`, `select`, `print`. An upload is
-//! checked and kept as the Files page's are (`files::take_upload`: G-code imported with
-//! the default config, a `.dlp` decoded and matched to its config) and, with
-//! `print=true`, queued on board 0 (it starts when the board is free). The key is
-//! checked by `gate` (`X-Api-Key` against `--auth`). Folders (`path`) are not kept: every
-//! file goes to the one folder. This file stops at the API's shapes.
+//! `/api/printerprofiles`, `/api/printer` and `/api/job` (what Cura polls),
+//! `GET /api/files[/local[/NAME]]`, and `POST /api/files/local` multipart with `file`,
+//! `path`, `select`, `print`. An upload is checked and kept as the Files page's are
+//! (`files::take_upload`: G-code imported with the default config, a `.dlp` decoded and
+//! matched to its config) and, with `print=true`, queued on a board (it starts when the
+//! board is free): the one the upload's folder (`path`) names, by name or number, else
+//! board 0; a folder is otherwise ignored (files all go to one). The status answers are
+//! board 0's (an OctoPrint instance has one printer). The key is checked by `gate`
+//! (`X-Api-Key` against `--auth`). Every refusal is plain text (`Plain`), the one error
+//! body both slicers show as it is. The commands (job, file select, jog and home) are in
+//! `octoprint_control`. This file stops at the API's shapes.
 
-use super::error::{ApiError, ApiResult};
+use super::boards::Board;
+use super::error::ApiError;
 use super::reply::blocking;
 use super::state::AppState;
 use axum::extract::{Multipart, Path, State};
@@ -28,17 +33,82 @@ pub const API_VERSION: &str = "0.1";
 /// "OctoPrint").
 pub const SERVER_VERSION: &str = "1.10.0";
 
-/// The routes of this module.
+/// A refusal as the OctoPrint API's clients show it: the status and the message as
+/// `text/plain` (exactly that type: Cura's plugin shows the body only then, and
+/// PrusaSlicer shows whatever body comes, so JSON would reach the user with its braces).
+#[derive(Debug)]
+pub struct Plain(pub ApiError);
+
+impl<T: Into<ApiError>> From<T> for Plain {
+    fn from(e: T) -> Self {
+        Plain(e.into())
+    }
+}
+
+impl IntoResponse for Plain {
+    fn into_response(self) -> Response {
+        (
+            self.0.status(),
+            [(header::CONTENT_TYPE, "text/plain")],
+            self.0.message().to_string(),
+        )
+            .into_response()
+    }
+}
+
+/// What the OctoPrint handlers return.
+pub type OpResult<T> = Result<T, Plain>;
+
+/// The routes of this module and of `octoprint_control`.
 pub fn routes() -> Router<Arc<AppState>> {
     Router::new()
         .route("/api/version", get(version))
         .route("/api/server", get(server))
         .route("/api/settings", get(settings))
+        .route("/api/printerprofiles", get(printer_profiles))
         .route("/api/printer", get(printer))
-        .route("/api/job", get(job))
+        .route("/api/job", get(job).post(super::octoprint_control::job))
         .route("/api/files", get(files))
         .route("/api/files/local", get(files).post(upload))
-        .route("/api/files/local/{name}", get(file))
+        .route(
+            "/api/files/local/{name}",
+            get(file).post(super::octoprint_control::file_command),
+        )
+        .route(
+            "/api/printer/command",
+            axum::routing::post(super::octoprint_control::printer_command),
+        )
+}
+
+/// The board an upload's folder names (`path`: a board's name or number, any case, with
+/// or without slashes), or board 0 for no folder.
+pub fn board_for(st: &AppState, folder: &str) -> OpResult<Arc<Board>> {
+    let want = folder.trim().trim_matches('/').trim();
+    let found = if want.is_empty() {
+        st.boards.first()
+    } else {
+        st.boards.iter().find(|b| {
+            let name = b.view.borrow().name.clone();
+            name.eq_ignore_ascii_case(want)
+                || super::store::plain_name(&name).eq_ignore_ascii_case(want)
+                || b.id.to_string() == want
+        })
+    };
+    found.cloned().ok_or_else(|| {
+        let names: Vec<String> = st
+            .boards
+            .iter()
+            .map(|b| format!("{:?} ({})", b.view.borrow().name, b.id))
+            .collect();
+        Plain(if names.is_empty() {
+            ApiError::conflict("there is no board to print on")
+        } else {
+            ApiError::bad(format!(
+                "no board named {want:?}: upload into the folder of one of {}, or into no folder for the first",
+                names.join(", ")
+            ))
+        })
+    })
 }
 
 async fn version() -> Json<Value> {
@@ -61,6 +131,12 @@ async fn settings() -> Json<Value> {
     }))
 }
 
+/// Whether a board runs a job, and whether that job is paused.
+pub fn job_flags(v: &super::view::View) -> (bool, bool) {
+    let printing = v.mode == Some(dollop::wire::Mode::Job);
+    (printing, printing && v.activity.starts_with("paused"))
+}
+
 /// Board 0's state in OctoPrint's words (`Operational`, `Printing`, `Paused`, `Error`,
 /// `Offline`) and flags.
 fn board_state(st: &AppState) -> (String, Value) {
@@ -68,8 +144,7 @@ fn board_state(st: &AppState) -> (String, Value) {
         return ("Offline".into(), json!({ "operational": false }));
     };
     let v = b.view.borrow().clone();
-    let printing = v.mode == Some(dollop::wire::Mode::Job);
-    let paused = printing && v.activity.starts_with("paused");
+    let (printing, paused) = job_flags(&v);
     let text = if !v.connected {
         "Offline"
     } else if v.fault.is_some() {
@@ -95,13 +170,41 @@ fn board_state(st: &AppState) -> (String, Value) {
     (text.into(), flags)
 }
 
-async fn printer(State(st): St) -> Json<Value> {
-    let (text, flags) = board_state(&st);
+/// One printer profile, board 0's name: Cura shows it as the printer's name and model.
+async fn printer_profiles(State(st): St) -> Json<Value> {
+    let name = st
+        .boards
+        .first()
+        .map(|b| b.view.borrow().name.clone())
+        .unwrap_or_else(|| "no board".into());
     Json(json!({
+        "profiles": {
+            "_default": {
+                "id": "_default",
+                "name": name,
+                "model": "dollop paste printer",
+                "current": true,
+                "default": true,
+            }
+        }
+    }))
+}
+
+/// Board 0's state; 409 when no board is connected, as OctoPrint answers when its
+/// printer is not operational (Cura then shows the printer offline).
+async fn printer(State(st): St) -> OpResult<Json<Value>> {
+    let connected = st.boards.first().is_some_and(|b| b.view.borrow().connected);
+    if !connected {
+        return Err(Plain(ApiError::conflict(
+            "Printer is not operational: no board is connected to dollop serve",
+        )));
+    }
+    let (text, flags) = board_state(&st);
+    Ok(Json(json!({
         "state": { "text": text, "flags": flags },
         "temperature": {},
         "sd": { "ready": false },
-    }))
+    })))
 }
 
 async fn job(State(st): St) -> Json<Value> {
@@ -144,17 +247,17 @@ async fn files(State(st): St) -> Json<Value> {
     Json(json!({ "files": list, "free": null }))
 }
 
-async fn file(State(st): St, Path(name): Path<String>) -> ApiResult<Json<Value>> {
+async fn file(State(st): St, Path(name): Path<String>) -> OpResult<Json<Value>> {
     st.files
         .list()
         .iter()
         .find(|e| e.name == name)
         .map(|e| Json(file_json(e)))
-        .ok_or_else(|| ApiError::missing(format!("no file named {name:?}")))
+        .ok_or_else(|| Plain(ApiError::missing(format!("no file named {name:?}"))))
 }
 
 /// `true`/`false` as OctoPrint's form fields send them.
-fn flag(field: &str, v: &str) -> ApiResult<bool> {
+fn flag(field: &str, v: &str) -> Result<bool, ApiError> {
     match v.trim().to_ascii_lowercase().as_str() {
         "true" | "1" | "yes" => Ok(true),
         "false" | "0" | "no" | "" => Ok(false),
@@ -164,8 +267,8 @@ fn flag(field: &str, v: &str) -> ApiResult<bool> {
     }
 }
 
-async fn upload(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
-    let (mut file, mut print) = (None, false);
+async fn upload(State(st): St, mut mp: Multipart) -> OpResult<Response> {
+    let (mut file, mut print, mut folder) = (None, false, String::new());
     while let Some(field) = mp.next_field().await? {
         match field.name().unwrap_or("") {
             "file" => {
@@ -178,14 +281,23 @@ async fn upload(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
             "select" => {
                 flag("select", &field.text().await?)?;
             }
-            // Folders are not kept; `path` and `userdata` are read and dropped.
+            // The folder names the board to print on; files all go to the one folder.
+            "path" => folder = field.text().await?,
+            // `userdata` is read and dropped.
             _ => {}
         }
     }
     let Some((name, bytes)) = file else {
-        return Err(ApiError::bad(
+        return Err(Plain(ApiError::bad(
             "no file in the upload: send it as the multipart field \"file\"",
-        ));
+        )));
+    };
+    // Checked before the file is kept, so a print for no such board keeps nothing; a
+    // file only kept may sit in any folder (they all go to the one).
+    let board = if print {
+        Some(board_for(&st, &folder)?)
+    } else {
+        None
     };
     let st2 = st.clone();
     let shown = name.clone();
@@ -197,7 +309,7 @@ async fn upload(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
                 "server",
                 format!("upload from a slicer refused: {}", e.message()),
             );
-            return Err(e);
+            return Err(Plain(e));
         }
     };
     st.console.info(
@@ -207,22 +319,8 @@ async fn upload(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
             if print { ", to print" } else { "" }
         ),
     );
-    if print {
-        let b = st
-            .boards
-            .first()
-            .cloned()
-            .ok_or_else(|| ApiError::conflict("there is no board to print on"))?;
-        let name = b.view.borrow().name.clone();
-        match b.order(super::boards::Order::Send(job)).await {
-            Ok(m) => st.console.info(&name, format!("send: {m}")),
-            Err(m) => {
-                st.console.error(&name, format!("send refused: {m}"));
-                return Err(ApiError::conflict(format!(
-                    "{kept} is kept (print it from the Files page) but the board did not take it: {m}"
-                )));
-            }
-        }
+    if let Some(board) = board {
+        super::octoprint_control::send(&st, &board, job, &kept).await?;
     }
     let body = json!({
         "files": { "local": { "name": kept, "origin": "local", "refs": refs(&kept) } },
