@@ -449,6 +449,30 @@ async fn kept_files(c: &Client, data: &Path) {
     )
     .await;
     assert!(!data.join("files/uploaded-copy.dlp").exists());
+    // A reload whose last job was deleted meanwhile says so, rather than silently opening
+    // another in its place.
+    js(
+        c,
+        "(localStorage.setItem('dollop-design', JSON.stringify({kept: 'uploaded-copy.dlp', options: {}})), true)",
+    )
+    .await;
+    c.refresh().await.expect("reloads");
+    wait_for(
+        c,
+        "document.getElementById('toast').textContent.includes('uploaded-copy.dlp, could not be reopened')",
+        20,
+        "the reload saying the last job could not be reopened",
+    )
+    .await;
+    // The header's Abort: greyed exactly while the board has no config (nothing to stop).
+    let consistent = wait_for(
+        c,
+        "(() => { const b = lastBoards && lastBoards.boards[0]; const s = document.querySelector('#header-boards .badge[data-board=\"0\"] .abort-now'); return b && s && b.mode && (s.disabled === (b.mode === 'Unconfigured')) && b.mode; })()",
+        20,
+        "the header's Abort matching board 0's mode",
+    )
+    .await;
+    eprintln!("header Abort checked with board 0 {consistent}");
 }
 
 /// A static snapshot endpoint, as a camera's: every request answers the same PNG. Its URL.

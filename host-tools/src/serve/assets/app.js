@@ -808,6 +808,12 @@ function renderHeader(data) {
     const pct = b.job && (b.mode === "Job" || b.progress > 0) ? ` ${(b.progress * 100).toFixed(0)} %` : "";
     badge.querySelector(".badge-text").textContent = `${data.boards.length > 1 ? b.id + ": " : ""}${state}${pct}`;
     badge.dataset.state = b.fault ? "fault" : b.mode === "Job" ? "printing" : b.connected ? "idle" : "off";
+    // A board with no config loaded cannot move or open a valve: nothing to stop.
+    const stop = badge.querySelector(".abort-now");
+    if (stop) {
+      stop.disabled = b.mode === "Unconfigured";
+      stop.title = stop.disabled ? `${b.name} has no config loaded: nothing moves, nothing to stop` : `stop ${b.name} now (valves shut, motion stops)`;
+    }
   }
 }
 
@@ -1000,8 +1006,9 @@ $("cal-apply").addEventListener("click", async () => {
   if (known) sel.value = chosen;
   await loadConfig(known ? chosen : 0);
   let restored = false;
+  let last = null;
   try {
-    const last = JSON.parse(localStorage.getItem("dollop-design") || "null");
+    last = JSON.parse(localStorage.getItem("dollop-design") || "null");
     if (last && last.kept) {
       for (const [k, v] of Object.entries(last.options || {})) {
         const input = $("opt-" + k);
@@ -1011,7 +1018,12 @@ $("cal-apply").addEventListener("click", async () => {
       setJob(await postJson(`/api/store/${encodeURIComponent(last.kept)}/open`, { config: app.config ? app.config.text : null, options: last.options }));
       restored = true;
     }
-  } catch (_) { localStorage.removeItem("dollop-design"); }
+  } catch (e) {
+    // Say so rather than open another job in its place unannounced (the file was deleted,
+    // or the config it was sliced with no longer checks).
+    if (last && last.kept) toast(`Your last job, ${last.kept}, could not be reopened: ${e.message}`, true);
+    localStorage.removeItem("dollop-design");
+  }
   if (app.info.demo_job && !restored) {
     try {
       setJob(await api(`/api/jobs/${app.info.demo_job}`));
