@@ -737,14 +737,19 @@ def simulate(args, job, config, log_dir, label, extra=()):
 
 
 CONTROL_S = 1e-4  # the control period
+REPLAY_TRIES = 6  # simulator runs to place a replayed pause (one or two usually do)
 
 
 def replay_pause(args, log_dir, board, rows, t_after_ns, job=None):
     """The simulator's run with the board's pause replayed: the board's first all-shut
     valve change after t_after_ns is the pause's, the next change its resume. The request
     and resume times for `dollop simulate --pause-at/--resume-at` are found by matching
-    those two pin changes in job time (two runs: a guess a control period early, then the
-    correction). Returns (rows, (close index, figures)) or raises FilError."""
+    those two pin changes in job time: a guess a control period early, then corrections,
+    up to REPLAY_TRIES runs, keeping the closest. Where the pause's close lands depends on
+    the request in steps (the bead's tail is placed by volume), so a correction can
+    overshoot; the residual is returned so that a compare's worst offset can be read
+    against it. Returns (rows, (close index, figures)) or raises FilError; figures are
+    (t_close, t_reopen, request, (close residual ms, reopen residual ms, runs))."""
     brd = board_changes(board)
     sim0 = sim_changes(rows)
     if not brd or not sim0:
@@ -756,8 +761,8 @@ def replay_pause(args, log_dir, board, rows, t_after_ns, job=None):
     t_close = (brd[ic][0] - origin) / 1e9
     t_reopen = (brd[ic + 1][0] - origin) / 1e9
     req, res = t_close - CONTROL_S, t_reopen - CONTROL_S
-    prow = None
-    for k in range(3):
+    best = None
+    for k in range(REPLAY_TRIES):
         prow = simulate(args, job or args.job, args.config, log_dir, "paused-%d" % k,
                         ["--pause-at", "%.6f" % req, "--resume-at", "%.6f" % res])
         sc = sim_changes(prow)
@@ -765,11 +770,22 @@ def replay_pause(args, log_dir, board, rows, t_after_ns, job=None):
         if jc is None or jc + 1 >= len(sc):
             raise FilError("the simulator's replayed pause shows no close and reopen")
         d_close, d_open = t_close - sc[jc][0], t_reopen - sc[jc + 1][0]
-        if abs(d_close) < 0.5 * CONTROL_S and abs(d_open) < 0.5 * CONTROL_S:
+        miss = max(abs(d_close), abs(d_open))
+        if best is None or miss < best[0]:
+            best = (miss, prow, req, d_close, d_open)
+        if miss < 0.5 * CONTROL_S:
             break
         req += d_close
         res += d_open
-    return prow, (ic, t_close, t_reopen, req)
+    miss, prow, req, d_close, d_open = best
+    return prow, (ic, t_close, t_reopen, req, (d_close * 1e3, d_open * 1e3, k + 1))
+
+
+def replay_words(residual):
+    """The replay's residual in words, for a check's line."""
+    dc, do, runs = residual
+    return "replayed pause matched to %.3f ms (close) and %.3f ms (reopen) in %d simulator run%s" % (
+        abs(dc), abs(do), runs, "" if runs == 1 else "s")
 
 
 def sim_changes(rows):
@@ -1098,7 +1114,7 @@ def scenario_pause(image, args, log_dir, machine, boards, rows):
     # at the board's pin times) and every valve change and step, before and after, is
     # compared with one time origin.
     try:
-        prow, (ic, t_close, t_reopen, t_req) = replay_pause(args, log_dir, b, rows, t_pause)
+        prow, (ic, t_close, t_reopen, t_req, residual) = replay_pause(args, log_dir, b, rows, t_pause)
     except FilError as e:
         return [("pause then resume mid-print", False, "Ctrl-C to send at %.3f s: %s; %s" % (
             t_pause / 1e9, last_line(sent), e))]
@@ -1116,10 +1132,11 @@ def scenario_pause(image, args, log_dir, machine, boards, rows):
              "Ctrl-C to send at %.3f s (after %d valve changes): %s; valves shut at %.4f s (job time), %s; "
              "head moved %.3f mm from the close to the reopen (%s); held %.2f s with %d valve-open writes and %d "
              "steps; resume: %s; reopened at %.4f s; against the simulator with the same pause (requested at "
-             "%.4f s): %d changes, worst offset %.3f ms, final %s%s" % (
+             "%.4f s; %s): %d changes, worst offset %.3f ms, final %s%s" % (
                  t_pause / 1e9, args.fault_after, last_line(sent), t_close, "mid-bead" if mid_bead else "NOT mid-bead",
                  moved_mm, "tail" if moved_mm <= PAUSE_TAIL_MM else "a travel", 0.25, len(held_opens),
-                 len(held_steps), last_line(resumed), t_reopen, t_req, summ["changes"], summ["worst_ms"],
+                 len(held_steps), last_line(resumed), t_reopen, t_req, replay_words(residual), summ["changes"],
+                 summ["worst_ms"],
                  summ["final"], "; " + "; ".join(lines) if lines else ""))]
 
 

@@ -339,8 +339,9 @@ def scenario_serve(image, args, log_dir, machine, boards, rows):
     # fil.replay_pause) and the whole print is compared with one time origin.
     if r.get("pause") == "ok" and r["valves_at_pause"] < len(b.log.valves):
         t_after = b.log.valves[r["valves_at_pause"]][0]
-        rows, _ = F.replay_pause(args, log_dir, b, rows, t_after,
-                                 job=None if r["same_job"] else r["dlp_path"])
+        rows, figs = F.replay_pause(args, log_dir, b, rows, t_after,
+                                    job=None if r["same_job"] else r["dlp_path"])
+        r["replay"] = F.replay_words(figs[4])
     ok, lines, summ = F.compare(b, rows)
     res = dict(board=b, ok=ok, lines=lines, summary=summ)
     return checks(r, drv.fol, b, dash, res, wall, virtual), summ
@@ -400,10 +401,10 @@ def checks(r, fol, b, dash, res, wall, virtual):
         ok = r["pause"] == "ok" and r["held_edges"] == 0 and r["held_opens"] == 0 and r["held_mask"] == 0
         fig = r["pause"] if r["pause"] != "ok" else (
             "pause asked at %.1f %% (%r), shown paused at %.1f %% (command %d); held 2 s wall: %d STEP "
-            "edges, %d valve-open writes; resume: %r; the pins are compared from the first change after it" % (
+            "edges, %d valve-open writes; resume: %r; %s; the pins are compared from the first change after it" % (
                 100 * r["pause_asked"], r["pause_msg"], 100 * r["paused_view"]["progress"],
                 r["paused_view"]["command"], r["held_edges"],
-                r["held_opens"], r["resume_msg"]))
+                r["held_opens"], r["resume_msg"], r.get("replay", "the pause was not replayed")))
         out.append(("pause then resume from the dashboard", ok, fig))
     said = " ".join("%s %s" % (v.get("message") or "", v.get("fault") or "") for v in views)
     out += F.check_printed(res, said + " " + dash.stderr_tail(4000))
