@@ -242,6 +242,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             Item::Seg(seg) => {
                 self.last_index = seg.index;
                 self.head = seg.u_start;
+                // The bead's own section from here to its end (sections change between
+                // beads only): the head's `v = Q / S`, and what turns volume into length.
+                self.inv_s = seg.inv_s;
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
                 self.want = Some(self.entry_material);
