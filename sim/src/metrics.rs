@@ -86,8 +86,11 @@ pub struct Metrics {
     pub boundaries: Vec<Boundary>,
     /// Beads whose landed material sequence differs from the design's (description).
     pub mismatches: Vec<String>,
-    /// Smallest and largest cross-section / S over `SECTION_WINDOW_MM` windows of bead.
+    /// Smallest and largest cross-section / S over `SECTION_WINDOW_MM` windows of bead,
+    /// S each bead's own (its `Command::Section`, else the config's).
     pub section_range: (f64, f64),
+    /// Smallest and largest of the beads' own sections, mm^2 (NaN with no bead).
+    pub bead_sections: (f64, f64),
     /// Windows measured.
     pub section_cycles: u64,
     /// Where the worst cross-section occurred (x, y), mm.
@@ -383,6 +386,10 @@ impl Meter {
         if !self.metrics.section_long_range.0.is_finite() {
             self.metrics.section_long_range = (1.0, 1.0);
         }
+        self.metrics.bead_sections = self
+            .bead_s
+            .iter()
+            .fold((f64::NAN, f64::NAN), |(lo, hi), &s| (lo.min(s), hi.max(s)));
         self.metrics
     }
 
