@@ -9,8 +9,33 @@ use serde::{Deserialize, Serialize};
 
 /// First bytes of every job file.
 pub const MAGIC: [u8; 4] = *b"DLOP";
-/// Version of the header and body encoding; changes whenever the bytes do.
+/// Version of the header and body encoding of a job with the version 1 commands only
+/// (print, travel, layer, dwell, end): every job without a `Command::Section`. Jobs are
+/// written at the lowest version that holds their commands (`version_for`), so a board or
+/// tool that reads only version 1 still takes them.
 pub const FORMAT_VERSION: u16 = 1;
+/// Version of a job with `Command::Section` (per-bead sections): version 1's header and
+/// commands, plus that one command. A version 1 reader refuses it by its version.
+pub const FORMAT_VERSION_SECTIONS: u16 = 2;
+/// Highest version this build reads (it reads every version from 1).
+pub const FORMAT_VERSION_MAX: u16 = FORMAT_VERSION_SECTIONS;
+
+/// Whether this build reads jobs of format `version`.
+pub fn reads_version(version: u16) -> bool {
+    (FORMAT_VERSION..=FORMAT_VERSION_MAX).contains(&version)
+}
+
+/// The format version a job with these commands is written as: the lowest that holds them.
+pub fn version_for<'a>(commands: impl IntoIterator<Item = &'a Command>) -> u16 {
+    if commands
+        .into_iter()
+        .any(|c| matches!(c, Command::Section { .. }))
+    {
+        FORMAT_VERSION_SECTIONS
+    } else {
+        FORMAT_VERSION
+    }
+}
 /// Longest encoded header accepted, bytes.
 pub const MAX_HEADER_LEN: usize = 512;
 /// Longest encoded command, bytes (variant + three zigzag varints).
@@ -72,7 +97,7 @@ pub enum JobError {
     Version {
         /// Version in the file.
         found: u16,
-        /// Version this build reads.
+        /// Highest version this build reads (it reads every one from 1).
         supported: u16,
     },
     /// Body shorter or longer than the header says.
@@ -110,7 +135,7 @@ impl core::fmt::Display for JobError {
             JobError::HeaderDecode => write!(f, "job header does not decode"),
             JobError::Version { found, supported } => write!(
                 f,
-                "job format version {found}, but this build reads version {supported}; re-slice the design"
+                "job format version {found}, but this build reads versions 1 to {supported}; update dollop, or re-slice the design with this one"
             ),
             JobError::BodyLength { expected, found } => write!(
                 f,
@@ -209,10 +234,10 @@ pub fn decode_preamble(bytes: &[u8]) -> Result<(JobHeader, usize), JobError> {
     }
     // The version is the header's first field: check it before the rest can mislead.
     let (version, _) = postcard::take_from_bytes::<u16>(h).map_err(|_| JobError::HeaderDecode)?;
-    if version != FORMAT_VERSION {
+    if !reads_version(version) {
         return Err(JobError::Version {
             found: version,
-            supported: FORMAT_VERSION,
+            supported: FORMAT_VERSION_MAX,
         });
     }
     let header: JobHeader = postcard::from_bytes(h).map_err(|_| JobError::HeaderDecode)?;
@@ -231,6 +256,8 @@ pub struct BodyDecoder {
     expected_len: u32,
     expected_crc: u32,
     expected_commands: u32,
+    /// The body may hold `Command::Section` (format version 2 on).
+    sections: bool,
 }
 
 impl BodyDecoder {
@@ -245,7 +272,19 @@ impl BodyDecoder {
             expected_len: header.body_len,
             expected_crc: header.body_crc,
             expected_commands: header.commands,
+            sections: header.format_version >= FORMAT_VERSION_SECTIONS,
         }
+    }
+
+    /// A command of a later version than the header's is corrupt data, as any other
+    /// undecodable command.
+    fn allowed(&self, cmd: &Command) -> Result<(), JobError> {
+        if !self.sections && matches!(cmd, Command::Section { .. }) {
+            return Err(JobError::CommandDecode {
+                offset: self.offset,
+            });
+        }
+        Ok(())
     }
 
     /// Decodes the commands that `chunk` completes, calling `sink` for each in order.
@@ -273,6 +312,7 @@ impl BodyDecoder {
             let avail = self.carry_len + take;
             match postcard::take_from_bytes::<Command>(&tmp[..avail]) {
                 Ok((cmd, left)) => {
+                    self.allowed(&cmd)?;
                     let used = avail - left.len();
                     let from_rest = used - self.carry_len;
                     rest = &rest[from_rest..];
@@ -298,6 +338,7 @@ impl BodyDecoder {
         while !rest.is_empty() {
             match postcard::take_from_bytes::<Command>(rest) {
                 Ok((cmd, left)) => {
+                    self.allowed(&cmd)?;
                     self.offset += (rest.len() - left.len()) as u32;
                     rest = left;
                     self.commands += 1;
@@ -468,6 +509,99 @@ mod tests {
             d.feed(&long, |_| -> Result<(), ()> { Ok(()) }),
             Err(JobError::BodyLength { .. })
         ));
+    }
+
+    /// `sample()` with a section before its second bead, as version `version`.
+    fn with_section(version: u16) -> (JobHeader, Vec<u8>, Vec<Command>) {
+        let (mut h, _, mut cmds) = sample();
+        cmds.insert(6, Command::Section { um2: 520_000 });
+        cmds.insert(
+            7,
+            Command::Print {
+                dx: 800,
+                dy: 0,
+                material: 0,
+            },
+        );
+        let mut body = Vec::new();
+        for c in &cmds {
+            let mut b = [0u8; MAX_COMMAND_LEN];
+            body.extend_from_slice(encode_command(c, &mut b).unwrap());
+        }
+        h.format_version = version;
+        h.commands = cmds.len() as u32;
+        h.body_len = body.len() as u32;
+        h.body_crc = body_crc(&body);
+        (h, body, cmds)
+    }
+
+    #[test]
+    fn a_version_2_body_holds_sections_and_a_version_1_body_may_not() {
+        let (h, body, cmds) = with_section(FORMAT_VERSION_SECTIONS);
+        assert_eq!(version_for(&cmds), FORMAT_VERSION_SECTIONS);
+        assert_eq!(version_for(&sample().2), FORMAT_VERSION);
+        for chunk in [1, 3, body.len()] {
+            let mut d = BodyDecoder::new(&h);
+            let mut got = Vec::new();
+            for c in body.chunks(chunk) {
+                d.feed(c, |cmd| -> Result<(), ()> {
+                    got.push(cmd);
+                    Ok(())
+                })
+                .unwrap()
+                .unwrap();
+            }
+            d.finish().unwrap();
+            assert_eq!(got, cmds, "chunk size {chunk}");
+        }
+        // The same body under a version 1 header: the section is where it stops.
+        let (h1, body1, _) = with_section(FORMAT_VERSION);
+        for chunk in [1, body1.len()] {
+            let mut d = BodyDecoder::new(&h1);
+            let mut n = 0;
+            let mut err = None;
+            for c in body1.chunks(chunk) {
+                match d.feed(c, |_| -> Result<(), ()> {
+                    n += 1;
+                    Ok(())
+                }) {
+                    Ok(_) => {}
+                    Err(e) => {
+                        err = Some(e);
+                        break;
+                    }
+                }
+            }
+            assert!(
+                matches!(err, Some(JobError::CommandDecode { .. })),
+                "chunk {chunk}: {err:?}"
+            );
+            assert_eq!(n, 6, "the commands before the section");
+        }
+    }
+
+    #[test]
+    fn versions_past_this_build_are_refused_by_name() {
+        for (v, ok) in [(0, false), (1, true), (2, true), (3, false)] {
+            let (mut h, _, _) = sample();
+            h.format_version = v;
+            let mut buf = [0u8; 600];
+            let pre = encode_preamble(&h, &mut buf).unwrap().to_vec();
+            match decode_preamble(&pre) {
+                Ok((back, _)) => assert!(ok && back == h, "version {v}"),
+                Err(e) => {
+                    assert!(!ok, "version {v}: {e}");
+                    assert_eq!(
+                        e,
+                        JobError::Version {
+                            found: v,
+                            supported: 2
+                        }
+                    );
+                    assert!(e.to_string().contains("reads versions 1 to 2"), "{e}");
+                }
+            }
+        }
     }
 
     #[test]

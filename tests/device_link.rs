@@ -242,7 +242,7 @@ fn bad_job_headers_are_refused_with_reasons() {
         Refusal::JobTooLarge { .. }
     ));
     let mut ver = hd.clone();
-    ver.format_version += 1;
+    ver.format_version = dollop::job::FORMAT_VERSION_MAX + 1;
     let r = h.refused(&mut b, &Request::BeginJob(ver));
     assert!(r.to_string().contains("re-slice"), "{r}");
     let mut mat = hd.clone();

@@ -6,7 +6,7 @@
 mod device_support;
 
 use device_support::*;
-use dollop::job::{BodyDecoder, JobHeader, FORMAT_VERSION};
+use dollop::job::{BodyDecoder, JobHeader, FORMAT_VERSION, FORMAT_VERSION_SECTIONS};
 use dollop::wire::*;
 use proptest::prelude::*;
 
@@ -59,9 +59,11 @@ proptest! {
         body in proptest::collection::vec(any::<u8>(), 0..512),
         split in 0usize..512,
         commands in 0u32..100,
+        sections in any::<bool>(),
     ) {
         let h = JobHeader {
-            format_version: FORMAT_VERSION,
+            // Version 1 refuses a section command, version 2 takes it.
+            format_version: if sections { FORMAT_VERSION_SECTIONS } else { FORMAT_VERSION },
             config_hash: 0,
             materials: heapless::Vec::new(),
             bounds_min_um: [0; 3],

@@ -26,6 +26,9 @@ mod modal;
 #[path = "../../host-tools/src/gcode_in/purge.rs"]
 mod purge;
 #[allow(dead_code)]
+#[path = "../../host-tools/src/gcode_in/sections.rs"]
+mod sections;
+#[allow(dead_code)]
 #[path = "../../host-tools/src/gcode_in/tools.rs"]
 mod tools;
 
@@ -49,12 +52,17 @@ fuzz_target!(|data: &[u8]| {
             max_segments: 100_000,
             max_commands: 400_000,
         },
+        filament_mm: None,
+        volumetric: flags & 4 != 0,
     };
     let Ok(mut m) = Modal::new(set) else { return };
     if m.run(&text).is_err() {
         return;
     }
-    let (cmds, start, _) = m.out.finish(None);
+    let unit = m.e_unit();
+    let Ok((cmds, start, _, _)) = m.out.finish(None, 0.4, unit) else {
+        return;
+    };
     let mut at = [start[0] as i64, start[1] as i64];
     for c in cmds {
         match c {
@@ -68,6 +76,8 @@ fuzz_target!(|data: &[u8]| {
                 at = [at[0] + dx as i64, at[1] + dy as i64];
                 assert!((-1..=200_001).contains(&at[0]) && (-1..=200_001).contains(&at[1]));
             }
+            // Every section within what the executor takes of a 0.4 mm^2 machine.
+            Command::Section { um2 } => assert!((400_000..=3_200_000).contains(&um2)),
             _ => {}
         }
     }

@@ -18,7 +18,12 @@ fuzz_target!(|data: &[u8]| {
     if data.len() >= 4 {
         let (head, body) = data.split_at(4);
         let h = job::JobHeader {
-            format_version: job::FORMAT_VERSION,
+            // Version 1 refuses `Command::Section`, version 2 takes it.
+            format_version: if head[1] & 1 == 0 {
+                job::FORMAT_VERSION
+            } else {
+                job::FORMAT_VERSION_SECTIONS
+            },
             config_hash: 0,
             materials: heapless::Vec::new(),
             bounds_min_um: [0; 3],

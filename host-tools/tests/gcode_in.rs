@@ -341,3 +341,102 @@ fn the_command_line_prints_the_summary_and_refuses_in_one_line() {
     assert!(err.contains("line 4: tool 2 has no inlet"), "{err}");
     assert!(!dir.path().join("t.dlp").exists());
 }
+
+/// The sections a job writes, mm^2.
+fn sections(cmds: &[Command]) -> Vec<f64> {
+    cmds.iter()
+        .filter_map(|c| match c {
+            Command::Section { um2 } => Some(*um2 as f64 * 1e-6),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_perimeter_at_0_9_mm_and_infill_at_0_8_mm_keep_their_widths() {
+    // PrusaSlicer's flow model at 0.6 mm layers (the file's comment gives the figures).
+    let (perimeter, infill) = (0.462_743, 0.402_743);
+    let mut config = example_config().unwrap();
+    config.channel.bead_area_mm2 = Some(0.40);
+    let machine = slicer::validate(Path::new("example"), &config).unwrap();
+    let text = std::fs::read_to_string(data("widths.gcode")).unwrap();
+    let run = |text: &str, opts: &ImportOptions| {
+        let i = gcode_in::import_text(text, "widths.gcode", opts, &config, &machine)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let s = sections(&i.sliced.commands);
+        (i, s)
+    };
+    let (i, s) = run(&text, &ImportOptions::default());
+    let near = |a: f64, b: f64| (a / b - 1.0).abs() <= 0.001;
+    assert_eq!(s.len(), 2, "{s:?}");
+    assert!(near(s[0], perimeter) && near(s[1], infill), "{s:?}");
+    assert_eq!(
+        i.sliced.header.format_version,
+        dollop::job::FORMAT_VERSION_SECTIONS
+    );
+    let summary = i.summary.to_string();
+    assert!(
+        summary.contains("the slicer's filament_diameter")
+            && summary.contains("widths 0.80 .. 0.90 mm as a rounded bead"),
+        "{summary}"
+    );
+    // The same beads with E as volume: after `M200 D1.75`, or with --volumetric.
+    let area = std::f64::consts::PI * 1.75 * 1.75 / 4.0;
+    let volume: String = text
+        .lines()
+        .map(
+            |l| match l.split_once(" E").filter(|_| l.starts_with("G1")) {
+                Some((head, rest)) => {
+                    let (e, tail) = rest.split_once(' ').unwrap();
+                    format!("{head} E{:.5} {tail}\n", e.parse::<f64>().unwrap() * area)
+                }
+                None => format!("{l}\n"),
+            },
+        )
+        .collect();
+    let with_m200 = volume.replace("M83\n", "M83\nM200 D1.75\n");
+    let volumetric = ImportOptions {
+        volumetric: true,
+        ..ImportOptions::default()
+    };
+    for (t, o) in [
+        (&with_m200, &ImportOptions::default()),
+        (&volume, &volumetric),
+    ] {
+        let (i, s2) = run(t, o);
+        assert_eq!(s2.len(), 2);
+        assert!(near(s2[0], s[0]) && near(s2[1], s[1]), "{s2:?}");
+        assert!(i.summary.to_string().contains("E as volume"));
+    }
+    // `M200 D0` turns volumetric E off again: the volumes read as filament are 2.4 times
+    // the sections, all laid at their own.
+    let (_, s3) = run(
+        &with_m200.replace("T1\n", "T1\nM200 D0\n"),
+        &Default::default(),
+    );
+    assert!(near(s3[1], infill * area), "{s3:?}");
+    // A filament diameter that is not one.
+    let bad = ImportOptions {
+        filament_mm: Some(-1.0),
+        ..ImportOptions::default()
+    };
+    let e = gcode_in::import_text(&text, "widths.gcode", &bad, &config, &machine).unwrap_err();
+    assert!(e.to_string().contains("--filament-mm -1"), "{e}");
+    // In the simulated print each bead keeps its own section over every 0.2 mm away from
+    // its ends, and the perimeter's is not the infill's.
+    let job = dollop_sim::Job {
+        start_um: i.sliced.header.start_um,
+        initial_material: i.sliced.header.initial_material,
+        commands: i.sliced.commands.clone(),
+    };
+    let r = dollop_sim::run::<f32>(&config, &job, &Default::default(), |_| {}).unwrap();
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    let (lo, hi) = r.metrics.section_long_range;
+    println!(
+        "widths.gcode: sections {s:.4?} mm^2; simulated section over 0.2 mm {lo:.4} .. {hi:.4} of each bead's S; beads {:.4?} mm^2",
+        r.metrics.bead_sections
+    );
+    assert!(lo >= 0.98 && hi <= 1.02, "{lo} .. {hi}");
+    let (b0, b1) = r.metrics.bead_sections;
+    assert!(near(b0, 0.40) && near(b1, perimeter), "{b0} {b1}");
+}

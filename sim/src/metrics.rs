@@ -86,8 +86,11 @@ pub struct Metrics {
     pub boundaries: Vec<Boundary>,
     /// Beads whose landed material sequence differs from the design's (description).
     pub mismatches: Vec<String>,
-    /// Smallest and largest cross-section / S over `SECTION_WINDOW_MM` windows of bead.
+    /// Smallest and largest cross-section / S over `SECTION_WINDOW_MM` windows of bead,
+    /// S each bead's own (its `Command::Section`, else the config's).
     pub section_range: (f64, f64),
+    /// Smallest and largest of the beads' own sections, mm^2 (NaN with no bead).
+    pub bead_sections: (f64, f64),
     /// Windows measured.
     pub section_cycles: u64,
     /// Where the worst cross-section occurred (x, y), mm.
@@ -194,7 +197,9 @@ struct BeadTrace {
 pub struct Meter {
     beads: Vec<DesignBead>,
     of_command: Vec<Option<usize>>,
-    bead_area: f64,
+    /// Each design bead's own section (its `Command::Section`, else the config's), mm^2:
+    /// the section is measured against it.
+    bead_s: Vec<f64>,
     current: Option<(usize, BeadTrace)>,
     last_pos: [f64; 2],
     /// The current bead's latest short windows (volume, length), at least
@@ -243,7 +248,8 @@ impl BeadTrace {
 }
 
 impl Meter {
-    /// A meter for a job's commands and bead section `bead_area` (mm^2).
+    /// A meter for a job's commands, whose beads have section `bead_area` (mm^2) until a
+    /// `Command::Section` gives them their own.
     pub fn new(commands: &[Command], start_um: [i32; 3], bead_area: f64) -> Self {
         let beads = design_beads(commands, start_um);
         let mut of_command = vec![None; commands.len()];
@@ -252,10 +258,20 @@ impl Meter {
                 of_command[c as usize] = Some(i);
             }
         }
+        let sections = sections_of(commands, bead_area);
+        let bead_s = beads
+            .iter()
+            .map(|b| {
+                sections
+                    .get(b.commands.0 as usize)
+                    .copied()
+                    .unwrap_or(bead_area)
+            })
+            .collect();
         Meter {
             beads,
             of_command,
-            bead_area,
+            bead_s,
             current: None,
             last_pos: [f64::NAN; 2],
             recent: Default::default(),
@@ -281,7 +297,7 @@ impl Meter {
                 self.last_pos = c.pos;
             }
         }
-        let Some((_, trace)) = self.current.as_mut() else {
+        let Some((bi, trace)) = self.current.as_mut() else {
             self.metrics.off_path_volume += c.landed_volume;
             self.last_pos = c.pos;
             return;
@@ -299,7 +315,7 @@ impl Meter {
         let ds_runs = if c.printing {
             ds
         } else {
-            let e = c.landed_volume / self.bead_area;
+            let e = c.landed_volume / self.bead_s[*bi];
             trace.extra += e;
             e
         };
@@ -326,7 +342,8 @@ impl Meter {
     }
 
     fn section(&mut self, (vol, ds): (f64, f64), at: [f64; 2]) {
-        let ratio = vol / (ds * self.bead_area);
+        let s = self.current.as_ref().map_or(f64::NAN, |x| self.bead_s[x.0]);
+        let ratio = vol / (ds * s);
         let (lo, hi) = self.metrics.section_range;
         if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
             self.metrics.section_worst_at = at;
@@ -345,7 +362,7 @@ impl Meter {
             .iter()
             .fold((0.0, 0.0), |a, w| (a.0 + w.0, a.1 + w.1));
         if l >= SECTION_LONG_MM {
-            let ratio = v / (l * self.bead_area);
+            let ratio = v / (l * s);
             let (lo, hi) = self.metrics.section_long_range;
             if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
                 self.metrics.section_long_worst_at = at;
@@ -353,6 +370,11 @@ impl Meter {
             self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
             self.metrics.section_long_samples.push(ratio);
         }
+    }
+
+    /// The section of design bead `i` (its `Command::Section`, else the config's), mm^2.
+    pub fn bead_section(&self, i: usize) -> Option<f64> {
+        self.bead_s.get(i).copied()
     }
 
     /// Finishes the run and returns the metrics.
@@ -364,6 +386,10 @@ impl Meter {
         if !self.metrics.section_long_range.0.is_finite() {
             self.metrics.section_long_range = (1.0, 1.0);
         }
+        self.metrics.bead_sections = self
+            .bead_s
+            .iter()
+            .fold((f64::NAN, f64::NAN), |(lo, hi), &s| (lo.min(s), hi.max(s)));
         self.metrics
     }
 
@@ -517,6 +543,20 @@ fn closest_s(samples: &[[f64; 3]], p: [f64; 2], from: usize) -> (f64, usize) {
         }
     }
     (best.1, best.2)
+}
+
+/// The section in force at each command, mm^2: `initial` until a `Command::Section`.
+pub fn sections_of(commands: &[Command], initial: f64) -> Vec<f64> {
+    let mut s = initial;
+    commands
+        .iter()
+        .map(|c| {
+            if let Command::Section { um2 } = *c {
+                s = um2 as f64 * 1e-6;
+            }
+            s
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -102,7 +102,7 @@ impl Iterator for Walk<'_> {
                     self.rise_to(z);
                     ([from[0], from[1], z], MoveKind::Layer)
                 }
-                Command::Dwell { .. } | Command::End => continue,
+                Command::Dwell { .. } | Command::End | Command::Section { .. } => continue,
             };
             self.at = to;
             return Some(Move {

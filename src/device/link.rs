@@ -753,11 +753,11 @@ impl<S: JobStore> Core<S> {
             // Preparing the store stalls the chip on flash boards: never while anything moves.
             return Err(r);
         }
-        if h.format_version != job::FORMAT_VERSION {
+        if !job::reads_version(h.format_version) {
             return Err(Refusal::JobHeader(text(format_args!(
-                "job format version {}, but the board reads version {}; re-slice with a matching dollop",
+                "job format version {}, but the board reads versions 1 to {}; re-slice with a matching dollop",
                 h.format_version,
-                job::FORMAT_VERSION
+                job::FORMAT_VERSION_MAX
             ))));
         }
         let Some(c) = &self.config else {

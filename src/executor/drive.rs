@@ -232,16 +232,26 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.pause_between_beads();
             return Ok(false);
         }
-        let Some(item) = self.plan.front().copied() else {
+        // By reference: only the fields each arm needs are read (a whole segment copied
+        // cost the bench's worst tick an instruction once it carried its section).
+        let Some(item) = self.plan.front() else {
             if !self.begun || self.ended {
                 self.phase = if self.ended { Phase::Done } else { Phase::Idle };
             }
             return Ok(false);
         };
-        match item {
-            Item::Seg(seg) => {
-                self.last_index = seg.index;
-                self.head = seg.u_start;
+        match *item {
+            Item::Seg(Seg {
+                index,
+                u_start,
+                inv_s,
+                ..
+            }) => {
+                self.last_index = index;
+                self.head = u_start;
+                // The bead's own section from here to its end (sections change between
+                // beads only): the head's `v = Q / S`, and what turns volume into length.
+                self.inv_s = inv_s;
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
                 self.want = Some(self.entry_material);

@@ -142,8 +142,12 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// Largest shortfall of a bead's end (paste ran out before it), as volume.
     short: Vol,
     dt: R,
-    /// 1 / bead section.
+    /// 1 / the section of the bead the head is on (set as each bead starts).
     inv_s: R,
+    /// Section the beads planned next take (`Command::Section`), mm^2, and its inverse.
+    plan_s: (R, R),
+    /// Sections a `Command::Section` may ask, um^2 (`command::section_limits`).
+    section_um2: (u32, u32),
     lost: Vol,
     last_now: Option<u64>,
     cycle: u64,
@@ -200,6 +204,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             short: Vol::ZERO,
             dt: R::ZERO,
             inv_s: R::ZERO,
+            plan_s: (R::ZERO, R::ZERO),
+            section_um2: (0, 0),
             lost: Vol::ZERO,
             last_now: None,
             cycle: 0,
@@ -237,7 +243,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.window = lead_window(m);
         self.settle_limit = settle_limit(m);
         self.dt = m.dt();
-        self.inv_s = R::ONE / m.bead_area;
+        self.section_um2 = crate::command::section_limits(m.bead_area.to_f64());
         self.plunger_per_cycle = core::array::from_fn(|i| {
             m.inlets
                 .get(i)
@@ -289,6 +295,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.pause = pause::PauseState::NONE;
         self.pending_fault = None;
         self.last_index = 0;
+        // Every job starts at the config's section; `Command::Section` changes it.
+        let s = self.machine.bead_area;
+        self.inv_s = R::ONE / s;
+        self.plan_s = (s, R::ONE / s);
     }
 
     /// The machine this executor runs.
@@ -569,6 +579,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         self.set_valves(self.model.commanded(), out);
         Ok(self.plan_report())
+    }
+
+    /// Section of the bead the head is on, mm^2 (off the tick's path: the pause's slack).
+    fn bead_s(&self) -> R {
+        R::ONE / self.inv_s
     }
 
     /// Volume that left the nozzle off the print path so far (between beads).

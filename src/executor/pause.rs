@@ -190,7 +190,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// next boundary and the bead's end, else waits (and works on the tail prediction).
     #[inline(never)]
     pub(super) fn pause_check(&mut self) {
-        let s = self.machine.bead_area;
+        let s = self.bead_s();
         let tail = self.stop.answer(&self.model, Goal::Stop);
         let bound = self.tail_bound();
         let reach = match tail {
@@ -283,7 +283,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             t = t.max(i.close_delay_s + i.decay_s);
         }
         let q = m.v_flow_max * m.bead_area;
-        Vol::from_mm3(q * t * R::of(TAIL_MARGIN) + m.bead_area * R::of(TAIL_SLACK_MM))
+        Vol::from_mm3(q * t * R::of(TAIL_MARGIN) + self.bead_s() * R::of(TAIL_SLACK_MM))
     }
 
     /// True when no other inlet can take the junction back while inlet `m`'s tail runs
@@ -291,7 +291,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// that decays more slowly than `m`'s (the junction sits at the highest pressure).
     fn others_spent(&self, m: u8) -> bool {
         let m = m as usize;
-        let s = self.machine.bead_area;
+        let s = self.bead_s();
         let sliver = s * R::of(SLIVER_MM);
         let resp = self.model.responses();
         for (i, p) in self.model.plungers().iter().enumerate() {

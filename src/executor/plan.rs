@@ -24,6 +24,9 @@ pub(super) struct Seg<R> {
     pub(super) u_end: Vol,
     pub(super) last: bool,
     pub(super) index: u32,
+    /// 1 / the bead's section (`Command::Section`), 1/mm^2: only the inverse, so that a
+    /// segment (copied as each bead starts) grows by one word.
+    pub(super) inv_s: R,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -150,6 +153,24 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let _ = self.plan.push_back(Item::Dwell { cycles, index });
                 Ok(())
             }
+            Command::Section { um2 } => {
+                // Between beads only: a section step inside a bead would be a step of the
+                // head's speed at constant flow, which the plan does not ramp.
+                if self.open.is_some() {
+                    return Err(Fault::InvalidCommand(CommandError::SectionInBead));
+                }
+                let (min_um2, max_um2) = self.section_um2;
+                if um2 < min_um2 || um2 > max_um2 {
+                    return Err(Fault::InvalidCommand(CommandError::SectionOutOfRange {
+                        um2,
+                        min_um2,
+                        max_um2,
+                    }));
+                }
+                let s = R::of(um2 as f64 * 1e-6);
+                self.plan_s = (s, R::ONE / s);
+                Ok(())
+            }
             Command::End => {
                 self.close_bead();
                 let _ = self.plan.push_back(Item::End { index });
@@ -174,7 +195,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Fixes an open segment's end: the fillet into `next` (direction, length), or the
     /// bead's end. Returns the segment and the tangent length the next one starts with.
     fn finalise(&self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
-        let s = self.machine.bead_area;
+        let s = self.plan_s.0;
         let f = next.and_then(|(d2, l2)| {
             // This segment's fillet may use all of it that the previous fillet left; the next
             // segment keeps half for its own far end.
@@ -203,6 +224,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 u_end,
                 last: next.is_none(),
                 index: o.index,
+                inv_s: self.plan_s.1,
             },
             t_end,
         )

@@ -154,6 +154,14 @@ pub struct Args {
     /// G-code in: largest distance between an arc (G2/G3) and the segments it becomes, mm.
     #[arg(long, value_name = "MM", default_value_t = 0.01)]
     pub chord_mm: f64,
+    /// G-code in: filament diameter E is measured in, mm, for the beads' sections
+    /// (E x filament area / length) [default: the slicer's `filament_diameter` in the
+    /// file, else 1.75].
+    #[arg(long, value_name = "MM")]
+    pub filament_mm: Option<f64>,
+    /// G-code in: E is volume, mm^3, from the start (as after `M200 D<d>`).
+    #[arg(long)]
+    pub volumetric: bool,
     /// G-code in: refuse files larger than this, MiB (checked from the size, before reading).
     #[arg(long, value_name = "MIB", default_value_t = gcode_in::DEFAULT_MAX_BYTES >> 20)]
     pub max_gcode_in_mb: u64,
@@ -332,6 +340,8 @@ fn run_gcode(
             max_segments: a.max_segments,
             max_commands: a.max_segments.saturating_mul(4),
         },
+        filament_mm: a.filament_mm,
+        volumetric: a.volumetric,
     };
     let imported = gcode_in::import_file(&a.designs[0], &opts, &config, &machine)?;
     print!("{}", imported.summary);

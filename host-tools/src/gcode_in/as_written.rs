@@ -3,7 +3,8 @@
 //! active tool opens where its extrusion starts and closes for travel; a tool change
 //! switches valves at the `T` itself, so each new region first pushes out the old paste
 //! the channel holds. Rendered as G-code for `slicer::gcode_judge` (the firmware model on
-//! the reference plant), heads at the speed a full channel's flow gives (`v = Q / S`).
+//! the reference plant), heads at the speed a full channel's flow gives (`v = Q / S`, S
+//! each bead's own section).
 
 use crate::slicer::gcode::Head;
 use dollop::{Command, Machine};
@@ -19,7 +20,9 @@ pub fn gcode(
     machine: &Machine<f64, 4>,
 ) -> String {
     let head = Head::new(machine, initial);
-    let feed = |m: u8| head.flow_full(m) / machine.bead_area * 60.0;
+    // The bead's own section (`Command::Section`), the config's until the first.
+    let mut section = machine.bead_area;
+    let feed = |m: u8, s: f64| head.flow_full(m) / s * 60.0;
     let travel_f = machine.motion.max_speed[0].min(machine.motion.max_speed[1]) * 60.0;
     let mm = |v: i64| v as f64 * 1e-3;
     let mut at = start_um.map(|v| v as i64);
@@ -45,7 +48,7 @@ pub fn gcode(
                     "G1 X{:.3} Y{:.3} F{:.1}",
                     mm(at[0]),
                     mm(at[1]),
-                    feed(material)
+                    feed(material, section)
                 );
             }
             Command::Travel { x, y, z } => {
@@ -69,6 +72,7 @@ pub fn gcode(
                 let _ = writeln!(out, "G4 P{ms}");
             }
             Command::End => close(&mut out, &mut open),
+            Command::Section { um2 } => section = um2 as f64 * 1e-6,
         }
     }
     out

@@ -1,11 +1,14 @@
 //! Moves to job commands: absolute targets rounded to integer micrometres once (so
 //! rounding never drifts), a travel inserted wherever a bead does not start where the head
 //! stands, Z-only moves as `Layer`, collinear same-material segments merged, the limits on
-//! print segments and commands enforced as the commands are made. The priming bead goes in
-//! front at the end (`finish`), once the part's extent is known.
+//! print segments and commands enforced as the commands are made; what section each print
+//! command's moves asked is kept beside it for `sections`. The priming bead goes in front
+//! at the end (`finish`), once the part's extent is known.
 
 use super::error::GcodeInError;
+use super::sections::Asked;
 use dollop::Command;
+use std::collections::BTreeSet;
 
 // Millimetres to micrometres (inputs are range-checked before they get here).
 use dollop_sim::um;
@@ -42,6 +45,10 @@ pub struct BodyStats {
 #[derive(Debug)]
 pub struct Emitter {
     cmds: Vec<Command>,
+    /// What each command's moves asked (zero for all but prints), beside `cmds`.
+    asked: Vec<Asked>,
+    /// Heights printed at, um: a print's layer is as thick as the gap to the one below.
+    zs: BTreeSet<i32>,
     /// Where the head stands, um; None before the first command.
     at: Option<[i32; 3]>,
     in_bead: bool,
@@ -61,6 +68,8 @@ impl Emitter {
     pub fn new(limits: CountLimits) -> Self {
         Emitter {
             cmds: Vec::new(),
+            asked: Vec::new(),
+            zs: BTreeSet::new(),
             at: None,
             in_bead: false,
             last_material: None,
@@ -84,6 +93,7 @@ impl Emitter {
             });
         }
         self.cmds.push(c);
+        self.asked.push(Asked::default());
         Ok(())
     }
 
@@ -108,12 +118,14 @@ impl Emitter {
         self.push(cmd, line)
     }
 
-    /// A bead segment from `from` (mm, XYZ) to `to` (mm, XY) in `material`.
+    /// A bead segment from `from` (mm, XYZ) to `to` (mm, XY) in `material`, asking bead
+    /// section `section` (mm^2, from its E).
     pub fn print(
         &mut self,
         from: [f64; 3],
         to: [f64; 2],
         material: u8,
+        section: f64,
         line: usize,
     ) -> Result<(), GcodeInError> {
         let f = [um(from[0]), um(from[1]), um(from[2])];
@@ -147,9 +159,16 @@ impl Emitter {
                 self.hi[a] = self.hi[a].max(*v);
             }
         }
-        self.stats.print_mm += (dx as f64).hypot(dy as f64) * 1e-3;
+        let len = (dx as f64).hypot(dy as f64) * 1e-3;
+        self.stats.print_mm += len;
         self.at = Some([t[0], t[1], f[2]]);
+        self.zs.insert(f[2]);
+        let below = self.zs.range(..f[2]).next_back().copied().unwrap_or(0);
+        let h = (f[2] - below) as f64 * 1e-3;
         if crate::slicer::toolpath::extend_last_print(&mut self.cmds, dx, dy, material) {
+            if let Some(a) = self.asked.last_mut() {
+                a.add(len, section, h);
+            }
             return Ok(());
         }
         if self.stats.print_segments >= self.limits.max_segments {
@@ -161,7 +180,11 @@ impl Emitter {
             });
         }
         self.stats.print_segments += 1;
-        self.push(Command::Print { dx, dy, material }, line)
+        self.push(Command::Print { dx, dy, material }, line)?;
+        if let Some(a) = self.asked.last_mut() {
+            a.add(len, section, h);
+        }
+        Ok(())
     }
 
     /// A wait with the valves closed.
@@ -187,9 +210,35 @@ impl Emitter {
         self.first_material
     }
 
-    /// The body, ended; `prime` (start and end, um, at one height) goes in front.
-    pub fn finish(mut self, prime: Option<([i32; 3], i32)>) -> (Vec<Command>, [i32; 3], BodyStats) {
+    /// The body, ended, with its beads' sections (`sections::place`, for a config of
+    /// section `config_mm2`); `prime` (start and end, um, at one height) goes in front,
+    /// at the config's section.
+    pub fn finish(
+        mut self,
+        prime: Option<([i32; 3], i32)>,
+        config_mm2: f64,
+        unit: super::sections::EUnit,
+    ) -> Result<
+        (
+            Vec<Command>,
+            [i32; 3],
+            BodyStats,
+            super::sections::SectionStats,
+        ),
+        GcodeInError,
+    > {
         let material = self.first_material.unwrap_or(0);
+        let body = std::mem::take(&mut self.cmds);
+        let (body, sections) = super::sections::place(body, &self.asked, config_mm2, unit);
+        if body.len() as u64 + 3 > self.limits.max_commands {
+            return Err(GcodeInError::TooMany {
+                line: 0,
+                what: "job commands (with the bead sections)",
+                limit: self.limits.max_commands,
+                flag: "--max-segments",
+            });
+        }
+        self.cmds = body;
         let mut cmds = Vec::with_capacity(self.cmds.len() + 3);
         let start = match prime {
             Some((s, x_end)) => {
@@ -212,7 +261,7 @@ impl Emitter {
         };
         cmds.append(&mut self.cmds);
         cmds.push(Command::End);
-        (cmds, start, self.stats)
+        Ok((cmds, start, self.stats, sections))
     }
 }
 

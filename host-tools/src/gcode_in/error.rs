@@ -134,6 +134,12 @@ pub enum GcodeInError {
         /// What was given.
         value: f64,
     },
+    /// A filament diameter that is not one.
+    #[error("--filament-mm {value}: give the filament's diameter in mm (0 to 100), or --volumetric when E is volume")]
+    BadFilament {
+        /// What was given.
+        value: f64,
+    },
     /// No room on the plate for the priming bead.
     #[error("no room for the {len:.1} mm priming bead below or above the part within the machine's travel (move the part, or give --prime-mm 0 if the G-code primes itself)")]
     NoRoomForPrime {

@@ -16,6 +16,7 @@ pub mod error;
 pub mod lexer;
 pub mod modal;
 pub mod purge;
+pub mod sections;
 pub mod tools;
 
 pub use error::{GcodeInError, ImportError};
@@ -57,6 +58,11 @@ pub struct ImportOptions {
     pub max_bytes: u64,
     /// Print segments and commands.
     pub limits: CountLimits,
+    /// `--filament-mm`: filament diameter E is measured in [default: the slicer's
+    /// `filament_diameter` setting in the file, else 1.75].
+    pub filament_mm: Option<f64>,
+    /// `--volumetric`: E is volume, mm^3, from the start (as after `M200 D<d>`).
+    pub volumetric: bool,
 }
 
 impl Default for ImportOptions {
@@ -71,6 +77,8 @@ impl Default for ImportOptions {
                 max_segments: crate::slicer::Limits::default().max_segments,
                 max_commands: 4 * crate::slicer::Limits::default().max_segments,
             },
+            filament_mm: None,
+            volumetric: false,
         }
     }
 }
@@ -101,6 +109,8 @@ pub struct Summary {
     pub chord_mm: f64,
     /// Paste the dropped purge blocks would have used at dollop's bead section, mm^3.
     pub purge_mm3: f64,
+    /// The beads' sections from E.
+    pub sections: sections::SectionStats,
 }
 
 impl fmt::Display for Summary {
@@ -151,7 +161,7 @@ impl fmt::Display for Summary {
                 c.purge.blocks, c.purge.print_mm, self.purge_mm3
             )?;
         }
-        Ok(())
+        write!(f, "{}", self.sections)
     }
 }
 
@@ -229,6 +239,12 @@ pub fn import_text(
         min_mm: machine.motion.min_mm,
         max_mm: machine.motion.max_mm,
         limits: opts.limits,
+        filament_mm: match opts.filament_mm {
+            Some(d) if d.is_finite() && d > 0.0 && d < 100.0 => Some(d),
+            Some(d) => return Err(GcodeInError::BadFilament { value: d }),
+            None => None,
+        },
+        volumetric: opts.volumetric,
     })?;
     m.run(text)?;
     let Some((lo, hi, z)) = m.out.extent() else {
@@ -237,10 +253,15 @@ pub fn import_text(
     let material = m.out.first_material().unwrap_or(0);
     let prime = place_prime(opts.prime_mm, lo, hi, z, material, config, machine)?;
     let counts = std::mem::take(&mut m.counts);
-    let (commands, start_um, body) = m.out.finish(prime.map(|p| {
-        let s = [um(p.start_mm[0]), um(p.start_mm[1]), um(p.start_mm[2])];
-        (s, um(p.start_mm[0] + p.len_mm))
-    }));
+    let unit = m.e_unit();
+    let (commands, start_um, body, sections) = m.out.finish(
+        prime.map(|p| {
+            let s = [um(p.start_mm[0]), um(p.start_mm[1]), um(p.start_mm[2])];
+            (s, um(p.start_mm[0] + p.len_mm))
+        }),
+        machine.bead_area,
+        unit,
+    )?;
     let (header, job_body) = job_file::encode(&commands, start_um, material, config);
     let prime_mm = prime.map_or(0.0, |p| p.len_mm);
     let stats = PathStats {
@@ -269,6 +290,7 @@ pub fn import_text(
             prime,
             chord_mm,
             purge_mm3,
+            sections,
         },
     })
 }

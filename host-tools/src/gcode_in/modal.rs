@@ -1,7 +1,7 @@
 //! The modal machine: reads lexed lines in order and keeps G-code's state (position with
-//! `G92` offsets, absolute/relative axes and E, millimetres/inches, the current tool's
-//! inlet, the purge region), turning moves into prints, travels, layers and dwells for the
-//! [`Emitter`]. What each command means is decided here; everything it does not use is
+//! `G92` offsets, absolute/relative axes and E, millimetres/inches, E as filament or as
+//! volume, the current tool's inlet, the purge region), turning moves into prints (with
+//! the section their E asks), travels, layers and dwells for the [`Emitter`]. What each command means is decided here; everything it does not use is
 //! counted by name for the summary. It stops at the commands: priming and the job
 //! header are `mod.rs`'s.
 
@@ -10,6 +10,7 @@ use super::emit::{CountLimits, Emitter};
 use super::error::GcodeInError;
 use super::lexer::{lex, Code, Words};
 use super::purge::{region, Region};
+use super::sections::EUnit;
 use super::tools::{pin_number, ToolMap};
 use std::collections::BTreeMap;
 
@@ -36,6 +37,29 @@ pub struct Settings {
     pub max_mm: [f64; 3],
     /// Limits on the job made.
     pub limits: CountLimits,
+    /// Filament diameter, mm (`--filament-mm`): before the slicer's own setting.
+    pub filament_mm: Option<f64>,
+    /// E is volume, mm^3, from the start (`--volumetric`), as after `M200 D<d>`.
+    pub volumetric: bool,
+}
+
+/// Filament diameter assumed where neither the command line nor the file gives one, mm.
+pub const DEFAULT_FILAMENT_MM: f64 = 1.75;
+
+/// The filament diameters a slicer wrote in its settings block, by tool (PrusaSlicer,
+/// SuperSlicer and OrcaSlicer: `; filament_diameter = 1.75,1.75`, at the file's end).
+pub fn slicer_filament(text: &str) -> Option<Vec<f64>> {
+    let line = text.lines().rev().find(|l| {
+        l.trim_start_matches([';', ' '])
+            .starts_with("filament_diameter =")
+    })?;
+    let (_, v) = line.split_once('=')?;
+    let d: Vec<f64> = v
+        .split([',', ';'])
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .ok()?;
+    (!d.is_empty() && d.iter().all(|x| x.is_finite() && *x > 0.0 && *x < 100.0)).then_some(d)
 }
 
 /// What was dropped with `--strip-purge`.
@@ -84,6 +108,12 @@ pub struct Modal {
     abs_e: bool,
     unit: f64,
     inlet: u8,
+    /// The tool (valve) selected, for its filament diameter.
+    tool: u32,
+    /// E is volume (`M200 D<d>`, `--volumetric`), else filament length.
+    e_volume: bool,
+    /// Filament diameters by tool, mm, and where they came from.
+    filament: (Vec<f64>, &'static str),
     purge: Option<(Region, String, usize)>,
     /// The output.
     pub out: Emitter,
@@ -95,6 +125,11 @@ impl Modal {
     /// A machine in G-code's power-on state (absolute, mm, tool 0).
     pub fn new(set: Settings) -> Result<Self, GcodeInError> {
         let inlet = set.tools.inlet(0, 0)?;
+        let filament = match set.filament_mm {
+            Some(d) => (vec![d], "--filament-mm"),
+            None => (vec![DEFAULT_FILAMENT_MM], "assumed, --filament-mm to set"),
+        };
+        let e_volume = set.volumetric;
         Ok(Modal {
             out: Emitter::new(set.limits),
             set,
@@ -108,6 +143,9 @@ impl Modal {
             abs_e: true,
             unit: 1.0,
             inlet,
+            tool: 0,
+            e_volume,
+            filament,
             purge: None,
             counts: Counts::default(),
         })
@@ -115,6 +153,11 @@ impl Modal {
 
     /// Reads a whole text, line by line.
     pub fn run(&mut self, text: &str) -> Result<(), GcodeInError> {
+        if self.set.filament_mm.is_none() {
+            if let Some(d) = slicer_filament(text) {
+                self.filament = (d, "the slicer's filament_diameter");
+            }
+        }
         for (i, l) in text.lines().enumerate() {
             self.line(l, i + 1)?;
         }
@@ -178,8 +221,15 @@ impl Modal {
                 self.abs_e = false;
                 Ok(())
             }
+            Code::M(200, None) if w.has('D') => {
+                // Marlin's and RepRapFirmware's volumetric extrusion: on with a diameter,
+                // off with D0.
+                self.e_volume = w.get('D')?.unwrap_or(0.0) > 0.0;
+                Ok(())
+            }
             Code::T(t) => {
                 self.inlet = self.set.tools.inlet(t, n)?;
+                self.tool = t;
                 self.counts.tool_changes += 1;
                 Ok(())
             }
@@ -259,6 +309,7 @@ impl Modal {
                 });
             }
             self.inlet = self.set.tools.inlet(p as u32, n)?;
+            self.tool = p as u32;
             self.counts.tool_changes += 1;
         }
         Ok(())
@@ -388,7 +439,8 @@ impl Modal {
                 self.counts.purge.print_mm += xy;
                 return Ok(());
             }
-            return self.out.print(from, [to[0], to[1]], self.inlet, n);
+            let section = de * self.e_area() / xy;
+            return self.out.print(from, [to[0], to[1]], self.inlet, section, n);
         }
         if !moved_xy && !given[2] {
             if de.abs() > E_EPS {
@@ -400,6 +452,33 @@ impl Modal {
             self.out.travel(to, n)?;
         }
         Ok(())
+    }
+
+    /// Paste per unit of E, mm^3: 1 for E as volume, else the tool's filament section.
+    fn e_area(&self) -> f64 {
+        if self.e_volume {
+            return 1.0;
+        }
+        let d = &self.filament.0;
+        let d = d.get(self.tool as usize).or(d.last()).copied();
+        let d = d.unwrap_or(DEFAULT_FILAMENT_MM);
+        std::f64::consts::PI * d * d / 4.0
+    }
+
+    /// How E is read now, for the summary.
+    pub fn e_unit(&self) -> EUnit {
+        if self.e_volume {
+            return EUnit::Volume;
+        }
+        let d = &self.filament.0;
+        EUnit::Filament {
+            diameter_mm: d
+                .get(self.tool as usize)
+                .or(d.last())
+                .copied()
+                .unwrap_or(DEFAULT_FILAMENT_MM),
+            from: self.filament.1,
+        }
     }
 
     fn arc(&mut self, w: &Words, clockwise: bool, n: usize) -> Result<(), GcodeInError> {

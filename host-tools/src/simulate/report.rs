@@ -45,9 +45,16 @@ pub fn report_text(
             m.mismatches.len() - 3
         ));
     }
+    let (lo, hi) = m.bead_sections;
+    let of_s = if lo < hi {
+        // A job with per-bead sections (format 2): each bead against its own.
+        format!("of each bead's S ({lo:.3} .. {hi:.3} mm^2)")
+    } else {
+        format!("of S = {:.3} mm^2", if lo > 0.0 { lo } else { r.bead_area })
+    };
     s.push_str(&format!(
-        "bead section      {:.4} .. {:.4} of S = {:.3} mm^2 (over every 0.02 mm of bead)\n",
-        m.section_range.0, m.section_range.1, r.bead_area
+        "bead section      {:.4} .. {:.4} {of_s} (over every 0.02 mm of bead)\n",
+        m.section_range.0, m.section_range.1
     ));
     let bounds = Bounds::of(config);
     let bound = bounds.section;

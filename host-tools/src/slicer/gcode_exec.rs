@@ -309,7 +309,7 @@ pub fn min_bytes(commands: &[Command], max_move_mm: f64) -> u64 {
                 moves += 1;
             }
             Command::Travel { .. } | Command::Layer { .. } => moves += 1,
-            Command::Dwell { .. } | Command::End => {}
+            Command::Dwell { .. } | Command::End | Command::Section { .. } => {}
         }
     }
     let cut = (len_um * 1e-3 / max_move_mm.max(1e-3)).ceil() as u64;

@@ -7,7 +7,7 @@ use super::output::write_bytes;
 use dollop::config::Config;
 use dollop::job::{
     self, body_crc, config_hash, decode_preamble, encode_command, encode_preamble, BodyDecoder,
-    JobError, JobHeader, MaterialEntry, FORMAT_VERSION, MAX_COMMAND_LEN, MAX_HEADER_LEN,
+    JobError, JobHeader, MaterialEntry, MAX_COMMAND_LEN, MAX_HEADER_LEN,
 };
 use dollop::Command;
 use std::path::Path;
@@ -25,7 +25,7 @@ pub fn bounds(commands: &[Command], start_um: [i32; 3]) -> ([i32; 3], [i32; 3]) 
             }
             Command::Travel { x, y, z } => at = [x as i64, y as i64, z as i64],
             Command::Layer { z } => at[2] = z as i64,
-            Command::Dwell { .. } | Command::End => continue,
+            Command::Dwell { .. } | Command::End | Command::Section { .. } => continue,
         }
         for a in 0..3 {
             lo[a] = lo[a].min(at[a]);
@@ -77,7 +77,8 @@ fn header_for(
     }
     let (lo, hi) = bounds(commands, start_um);
     JobHeader {
-        format_version: FORMAT_VERSION,
+        // Version 1 unless the job needs more, so older boards take what they can print.
+        format_version: job::version_for(commands),
         config_hash: config_hash(config),
         materials,
         bounds_min_um: lo,
