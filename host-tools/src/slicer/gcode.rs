@@ -416,9 +416,10 @@ pub(super) fn check_materials(
         .max()
         .unwrap_or(0);
     if worst as usize >= inlets {
-        return Err(SliceError::Option(format!(
-            "the job uses material {worst} but the machine has {inlets} inlet(s)"
-        )));
+        return Err(SliceError::MaterialBeyondInlets {
+            material: worst,
+            inlets,
+        });
     }
     Ok(())
 }

@@ -11,7 +11,7 @@
 //! surface touching without overlapping. Overlaps between bodies are refused.
 
 use super::design::{Design, Layer, Run, TOUCH_MM};
-use super::error::SliceError;
+use super::error::{SliceError, SliceLimit, SliceOption};
 use super::mesh::Mesh;
 use super::output::progress;
 
@@ -68,9 +68,7 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     }
     let (pitch, h) = (opts.pitch_mm, opts.layer_mm);
     if !(pitch > 0.0 && h > 0.0) {
-        return Err(SliceError::Option(
-            "pitch and layer height must be above zero".into(),
-        ));
+        return Err(SliceError::NoSpacing);
     }
     let mut layers_n = (((hi[2] - lo[2]) / h).round() as usize).max(1);
     if let Some(n) = opts.max_layers {
@@ -78,9 +76,11 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     }
     let rows = (((hi[1] - lo[1]) / pitch).round() as usize).max(1);
     if rows.saturating_mul(layers_n) > 50_000_000 {
-        return Err(SliceError::Option(format!(
-            "{name}: {rows} rows x {layers_n} layers is too many; check the model's units"
-        )));
+        return Err(SliceError::TooManyRows {
+            what: name.to_string(),
+            rows,
+            layers: layers_n,
+        });
     }
     let z_of = |k: usize| lo[2] + (k as f64 + 0.5) * h;
     let y_of = |r: usize| lo[1] + (r as f64 + 0.5) * pitch;
@@ -182,7 +182,8 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
                 &format!("runs in the first {} of {layers_n} layers:", k + 1),
                 total_runs,
                 opts.max_segments,
-                "--max-segments (or --layers)",
+                SliceLimit::Segments,
+                Some(SliceOption::Layers),
             ));
         }
         out_layers.push(layer);
