@@ -214,7 +214,7 @@ async fn upload(State(st): St, mut mp: Multipart) -> ApiResult<Response> {
             .cloned()
             .ok_or_else(|| ApiError::conflict("there is no board to print on"))?;
         let name = b.view.borrow().name.clone();
-        match b.order(super::boards::Order::Send(job)).await {
+        match b.order(super::boards::WorkerOrder::Send(job)).await {
             Ok(m) => st.console.info(&name, format!("send: {m}")),
             Err(m) => {
                 st.console.error(&name, format!("send refused: {m}"));
