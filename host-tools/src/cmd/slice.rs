@@ -408,11 +408,7 @@ fn finish(
         output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
     }
     if let Some(path) = &a.preview {
-        let names: Vec<String> = config
-            .inlets
-            .iter()
-            .map(|i| i.material.to_string())
-            .collect();
+        let names = crate::slicer::material_names(&config);
         let img = preview::figure(
             &sliced.commands,
             sliced.header.start_um,
@@ -495,11 +491,7 @@ fn gcode_text(
     machine: &dollop::Machine<f64, 4>,
     sliced: &slicer::Sliced,
 ) -> anyhow::Result<(String, gcode::GcodeStats)> {
-    let names: Vec<String> = config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
+    let names = crate::slicer::material_names(config);
     let style = match req.gcode.style.profile() {
         Some(style) => style,
         None => {

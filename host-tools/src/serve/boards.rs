@@ -17,7 +17,7 @@ use super::Args;
 use crate::link::{
     mem_options, ops, serial, Cancelled, Client, JobFile, LinkError, Options, SerialLink, Transport,
 };
-use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
+use dollop::wire::{Halt, JobSlot, Mode, Request, Snapshot, Status};
 use dollop::{Axis, RunState};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
@@ -313,6 +313,86 @@ struct Worker {
     history: Option<Arc<History>>,
 }
 
+/// Still on its way: a job runs (or is paused) on the board.
+fn on_its_way(k: &Snapshot) -> bool {
+    k.mode == Mode::Job
+        && !matches!(
+            k.run,
+            RunState::Done | RunState::Aborted | RunState::Faulted
+        )
+}
+
+/// The running (or just ended) job's part of the view from the board's snapshot `k`:
+/// command, progress, layer, its clock, time left and finish; `Some(outcome)` when the
+/// job has just ended.
+fn follow_job(cur: &mut Current, v: &mut View, k: &Snapshot, speed: f64) -> Option<&'static str> {
+    let done = k.run == RunState::Done;
+    let running = on_its_way(k);
+    let mut ended = None;
+    let now = Instant::now();
+    if done {
+        // A finished job has done every command (the board's count stops one
+        // short: it counts the command under way).
+        v.command = v.commands;
+    }
+    v.progress = if done {
+        1.0
+    } else {
+        (k.command as f64 / v.commands.max(1) as f64).min(1.0)
+    };
+    v.layer = cur
+        .layer_starts
+        .partition_point(|&c| c <= k.command)
+        .saturating_sub(1);
+    if running {
+        cur.clock.paused(k.run == RunState::Paused, now);
+    } else if !cur.clock.ended() {
+        cur.clock.end(now);
+        ended = Some(if done {
+            "finished"
+        } else if k.mode == Mode::Halted {
+            "halted"
+        } else {
+            "aborted"
+        });
+    }
+    v.elapsed_s = cur.clock.elapsed_s(now);
+    let f = &cur.entry.figures;
+    v.eta_s = if done {
+        Some(0.0)
+    } else if running {
+        clock::eta_s(
+            &f.command_t_s,
+            f.est_time_s,
+            k.command,
+            v.commands,
+            cur.clock.printing_s(now),
+            speed,
+        )
+    } else {
+        None
+    };
+    v.finish_unix_ms = v.eta_s.and_then(clock::unix_ms_in);
+    ended
+}
+
+/// The board's activity in words, from its mode and run state (`current`: a job is
+/// the board's, finished or not).
+fn activity(mode: Mode, run: RunState, current: bool) -> String {
+    match (mode, run) {
+        // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
+        (Mode::Job, RunState::Paused) => "paused".into(),
+        (Mode::Job, RunState::Pausing) => "pausing".into(),
+        (Mode::Job, _) => "printing".into(),
+        (Mode::Homing, _) => "homing".into(),
+        (Mode::Halted, _) => "halted".into(),
+        (Mode::ValveTest, _) => "valve test".into(),
+        (_, RunState::Done) if current => "finished: clear the plate, then Start next".into(),
+        (_, RunState::Aborted) if current => "aborted".into(),
+        (m, _) => format!("{m:?}").to_lowercase(),
+    }
+}
+
 fn mode_words(s: &Status) -> Option<String> {
     let k = &s.control;
     if k.mode != Mode::Halted && !k.estop {
@@ -576,14 +656,7 @@ impl Worker {
             }
         }
         let printing = k.mode == Mode::Job;
-        let done = k.run == RunState::Done;
-        // Still on its way: the job runs (or is paused) on the board.
-        let running = printing
-            && !matches!(
-                k.run,
-                RunState::Done | RunState::Aborted | RunState::Faulted
-            );
-        if !running && !matches!(k.mode, Mode::Homing | Mode::Jogging) {
+        if !on_its_way(k) && !matches!(k.mode, Mode::Homing | Mode::Jogging) {
             // Nothing moves the head and no print meters paste: a stopped executor's
             // last speed and flow are not the board now.
             v.speed = 0.0;
@@ -594,67 +667,11 @@ impl Worker {
                 }
             }
         }
-        let mut ended = None;
-        if let Some(cur) = self.current.as_mut() {
-            let now = Instant::now();
-            if done {
-                // A finished job has done every command (the board's count stops one
-                // short: it counts the command under way).
-                v.command = v.commands;
-            }
-            v.progress = if done {
-                1.0
-            } else {
-                (k.command as f64 / v.commands.max(1) as f64).min(1.0)
-            };
-            v.layer = cur
-                .layer_starts
-                .partition_point(|&c| c <= k.command)
-                .saturating_sub(1);
-            if running {
-                cur.clock.paused(k.run == RunState::Paused, now);
-            } else if !cur.clock.ended() {
-                cur.clock.end(now);
-                ended = Some(if done {
-                    "finished"
-                } else if k.mode == Mode::Halted {
-                    "halted"
-                } else {
-                    "aborted"
-                });
-            }
-            v.elapsed_s = cur.clock.elapsed_s(now);
-            let f = &cur.entry.figures;
-            v.eta_s = if done {
-                Some(0.0)
-            } else if running {
-                clock::eta_s(
-                    &f.command_t_s,
-                    f.est_time_s,
-                    k.command,
-                    v.commands,
-                    cur.clock.printing_s(now),
-                    self.speed,
-                )
-            } else {
-                None
-            };
-            v.finish_unix_ms = v.eta_s.and_then(clock::unix_ms_in);
-        }
-        v.activity = match (k.mode, k.run) {
-            // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
-            (Mode::Job, RunState::Paused) => "paused".into(),
-            (Mode::Job, RunState::Pausing) => "pausing".into(),
-            (Mode::Job, _) => "printing".into(),
-            (Mode::Homing, _) => "homing".into(),
-            (Mode::Halted, _) => "halted".into(),
-            (Mode::ValveTest, _) => "valve test".into(),
-            (_, RunState::Done) if self.current.is_some() => {
-                "finished: clear the plate, then Start next".into()
-            }
-            (_, RunState::Aborted) if self.current.is_some() => "aborted".into(),
-            (m, _) => format!("{m:?}").to_lowercase(),
+        let ended = match self.current.as_mut() {
+            Some(cur) => follow_job(cur, v, k, self.speed),
+            None => None,
         };
+        v.activity = activity(k.mode, k.run, self.current.is_some());
         if !printing && self.current.as_ref().is_some_and(|c| c.aborted) && k.mode == Mode::Idle {
             v.activity = "aborted".into();
         }

@@ -237,12 +237,7 @@ async fn job_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiRe
         }
         "job.gcode" => {
             let text = blocking(move || {
-                let names: Vec<String> = e
-                    .config
-                    .inlets
-                    .iter()
-                    .map(|i| i.material.to_string())
-                    .collect();
+                let names = crate::slicer::material_names(&e.config);
                 crate::slicer::gcode_exec::export(
                     &e.config,
                     &e.sliced.commands,

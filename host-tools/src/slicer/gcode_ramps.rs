@@ -110,34 +110,9 @@ pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Ste
                 s += len;
             }
         }
-        // Ranges of the chain that run at a higher feed: (from s, to s, feed).
-        let mut faster: Vec<(f64, f64, f64)> = Vec::new();
-        for w in moves.windows(2) {
-            let (ia, _, sj, v1, la) = w[0];
-            let (ib, _, _, v2, lb) = w[1];
-            if la <= 0.0 || lb <= 0.0 || v1 <= 0.0 || v2 <= 0.0 {
-                continue;
-            }
-            let m = if v2 > v1 { ib } else { ia };
-            let Step::Move { to, .. } = chain[m] else {
-                continue;
-            };
-            let u = sub(to, at[k + m]).map(|c| c / norm(sub(to, at[k + m])));
-            let a = accel_along(u, accel);
-            let (lo, hi) = (v1.min(v2), v1.max(v2));
-            if (hi * hi - lo * lo) / (2.0 * a) < JUMP_MIN_MM {
-                continue;
-            }
-            let shift = centring_shift(lo, hi, a);
-            if v2 > v1 {
-                faster.push((sj - shift, sj, v2));
-            } else {
-                faster.push((sj, sj + shift, v1));
-            }
-        }
+        let faster = faster_ranges(chain, &at[k..], &moves, accel);
         // Ranges by their start; a move looks only at those that can reach it, so a
         // layer-long chain costs its length, not its square.
-        faster.sort_by(|x, y| x.0.total_cmp(&y.0));
         let mut first = 0usize;
         let mut mi = 0usize;
         let mut cuts: Vec<f64> = Vec::new();
@@ -195,6 +170,44 @@ pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Ste
         k = end + 1;
     }
     out
+}
+
+/// The stretches of a chain of print moves (`at`: each step's start point; `moves`: each
+/// move's index in the chain, start and end path length, feed and length) that run at a
+/// higher feed, centred on the jump between two moves' feeds: (from s, to s, feed),
+/// sorted by their start.
+fn faster_ranges(
+    chain: &[Step],
+    at: &[[f64; 3]],
+    moves: &[(usize, f64, f64, f64, f64)],
+    accel: [f64; 3],
+) -> Vec<(f64, f64, f64)> {
+    let mut faster: Vec<(f64, f64, f64)> = Vec::new();
+    for w in moves.windows(2) {
+        let (ia, _, sj, v1, la) = w[0];
+        let (ib, _, _, v2, lb) = w[1];
+        if la <= 0.0 || lb <= 0.0 || v1 <= 0.0 || v2 <= 0.0 {
+            continue;
+        }
+        let m = if v2 > v1 { ib } else { ia };
+        let Step::Move { to, .. } = chain[m] else {
+            continue;
+        };
+        let u = sub(to, at[m]).map(|c| c / norm(sub(to, at[m])));
+        let a = accel_along(u, accel);
+        let (lo, hi) = (v1.min(v2), v1.max(v2));
+        if (hi * hi - lo * lo) / (2.0 * a) < JUMP_MIN_MM {
+            continue;
+        }
+        let shift = centring_shift(lo, hi, a);
+        if v2 > v1 {
+            faster.push((sj - shift, sj, v2));
+        } else {
+            faster.push((sj, sj + shift, v1));
+        }
+    }
+    faster.sort_by(|x, y| x.0.total_cmp(&y.0));
+    faster
 }
 
 /// Where the executor starts a bead at speed (a valve whose flow starts at once), a

@@ -102,6 +102,15 @@ pub fn over_limit(
     }
 }
 
+/// Each inlet's material name, inlet 0 first (what reports, pictures and G-code call them).
+pub fn material_names(config: &Config) -> Vec<String> {
+    config
+        .inlets
+        .iter()
+        .map(|i| i.material.to_string())
+        .collect()
+}
+
 impl Default for SliceOptions {
     fn default() -> Self {
         SliceOptions {
