@@ -10,12 +10,18 @@ pub mod simulate;
 pub mod slice;
 
 /// An error as the command line prints it: one line, the context chain joined by ": "
-/// (what `{:#}` prints), with the slicer's errors naming options and limits by their flags.
+/// (what `{:#}` prints), with the libraries' errors naming options by their flags (the
+/// slicer's options and limits, the link's port).
 pub fn one_line(e: &anyhow::Error) -> String {
     e.chain()
-        .map(|c| match c.downcast_ref::<crate::slicer::SliceError>() {
-            Some(s) => slice::in_flags(s),
-            None => c.to_string(),
+        .map(|c| {
+            if let Some(s) = c.downcast_ref::<crate::slicer::SliceError>() {
+                slice::in_flags(s)
+            } else if let Some(l) = c.downcast_ref::<crate::link::LinkError>() {
+                l.message(Some("--port PATH"))
+            } else {
+                c.to_string()
+            }
         })
         .collect::<Vec<_>>()
         .join(": ")
@@ -41,6 +47,14 @@ mod tests {
         );
         let e = SliceError::Markers(MarkerError::Layers);
         assert!(!e.to_string().contains("--"), "{e}");
-        assert!(one_line(&e.into()).starts_with("--markers: corner markers are for single-layer"),);
+        assert!(one_line(&e.into()).starts_with("--markers: corner markers are for single-layer"));
+        let e = crate::link::LinkError::SeveralBoards {
+            found: vec!["/dev/ttyACM0".into(), "/dev/ttyACM1".into()],
+        };
+        assert!(!e.to_string().contains("--"), "{e}");
+        assert_eq!(
+            one_line(&e.into()),
+            "several dollop boards found (/dev/ttyACM0, /dev/ttyACM1); choose one with --port PATH"
+        );
     }
 }
