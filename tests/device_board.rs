@@ -290,8 +290,8 @@ fn valve_test_pending() -> (Control, Queues) {
     let mut out = RecordingOutputs::default();
     c.power_up(&mut out);
     c.load_config(&config(), &mut out).unwrap();
-    use dollop::device::{Order, ToControl};
-    q.order(Order::Valve {
+    use dollop::device::{ControlOrder, ToControl};
+    q.order(ControlOrder::Valve {
         inlet: 0,
         open: true,
     })

@@ -5,7 +5,7 @@
 mod device_support;
 
 use device_support::*;
-use dollop::device::{force_safe, Control, Inputs, Order, Queues, ResetCause, ToControl};
+use dollop::device::{force_safe, Control, ControlOrder, Inputs, Queues, ResetCause, ToControl};
 use dollop::wire::*;
 use dollop::{Axis, Command, Fault, Outputs, RecordingOutputs, RunState};
 
@@ -112,9 +112,9 @@ fn a_hung_control_loop_is_reset_by_the_watchdog_into_the_safe_state() {
     printing(&mut b, &mut h);
     b.control_hung = true;
     // Outputs stay as the hung loop left them until the watchdog bites.
-    b.advance(dollop::device::sim::WATCHDOG_US / 2);
+    b.advance(dollop::device::sim_board::WATCHDOG_US / 2);
     assert_eq!(b.watchdog_resets, 0);
-    b.advance(dollop::device::sim::WATCHDOG_US);
+    b.advance(dollop::device::sim_board::WATCHDOG_US);
     assert_eq!(b.watchdog_resets, 1);
     assert_safe(&b);
     // After the reset the board is halted, says why, and has lost its session.
@@ -285,7 +285,7 @@ fn jogs_stay_inside_the_soft_limits() {
     // An order that slipped past the link is ignored by the control loop as well.
     let steps = b.out.position;
     b.queues
-        .order(Order::Jog {
+        .order(ControlOrder::Jog {
             axis: Axis::X,
             um: -10_000_000,
         })
@@ -343,7 +343,7 @@ fn homing_is_required_before_a_job_or_a_jog() {
     );
     // The control loop ignores a start that is not homed even if asked directly.
     b.queues
-        .order(Order::Start {
+        .order(ControlOrder::Start {
             epoch: 9,
             start_um: [20_000; 3],
             initial_material: 0,

@@ -10,9 +10,10 @@ use core::pin::pin;
 use core::task::{Context, Poll, Waker};
 use device_support::*;
 use dollop::device::serve::{EitherPort, WRITE_TIMEOUT_TICKS};
-use dollop::device::sim::SIM_INFO;
+use dollop::device::sim_board::SIM_INFO;
 use dollop::device::{
-    serve, HostPort, Inputs, JobRecord, Link, Order, Pace, PortClosed, Queues, RamStore, ToControl,
+    serve, BoardLink, ControlOrder, HostPort, Inputs, JobRecord, Pace, PortClosed, Queues,
+    RamStore, ToControl,
 };
 use dollop::wire::*;
 use std::cell::{Cell, RefCell};
@@ -143,7 +144,7 @@ fn drive<F: Future>(fut: F, polls: u32, mut between: impl FnMut()) {
 struct LinkEnd(Rc<RefCell<Queues>>);
 
 impl ToControl for LinkEnd {
-    fn order(&mut self, o: Order) -> Result<(), Order> {
+    fn order(&mut self, o: ControlOrder) -> Result<(), ControlOrder> {
         self.0.borrow_mut().order(o)
     }
     fn command(&mut self, r: JobRecord) -> Result<(), JobRecord> {
@@ -163,7 +164,10 @@ impl ToControl for LinkEnd {
 /// Runs the loop on a board whose link and control loop are taken from `b`, for `ms`
 /// milliseconds, the control loop ticking ten times a millisecond.
 fn serve_board(b: &mut Board, w: &Rc<World>, mut port: impl HostPort, ms: u32) {
-    let mut link = std::mem::replace(&mut b.link, Link::new(RamStore::new(Vec::new()), SIM_INFO));
+    let mut link = std::mem::replace(
+        &mut b.link,
+        BoardLink::new(RamStore::new(Vec::new()), SIM_INFO),
+    );
     let queues = Rc::new(RefCell::new(std::mem::take(&mut b.queues)));
     let mut end = LinkEnd(queues.clone());
     let mut pace = Millis { w: w.clone() };

@@ -73,7 +73,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // One line: the context chain joined by ": ".
-            eprintln!("dollop: {e:#}");
+            eprintln!("dollop: {}", cmd::one_line(&e));
             ExitCode::from(1)
         }
     }

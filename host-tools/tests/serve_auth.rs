@@ -3,6 +3,8 @@
 //! cookie is let through; a wrong key on the sign-in form is refused; listening beyond
 //! loopback without `--auth` does not start. Plain HTTP/1.1 over a socket, no browser.
 
+mod serve_common;
+
 use dollop_host::serve;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -10,16 +12,9 @@ use std::net::{SocketAddr, TcpStream};
 fn args(listen: &str, auth: Option<&str>) -> serve::Args {
     serve::Args {
         listen: listen.parse().expect("address"),
-        port: None,
         auth: auth.map(String::from),
-        config: None,
-        boards: Vec::new(),
-        demo: false,
         sim_speed: 1.0,
-        no_usb: true,
-        sim_boards: 1,
-        data: None,
-        camera: None,
+        ..serve_common::args()
     }
 }
 

@@ -12,6 +12,8 @@
 //! under the target directory (`tmp/serve-screenshots`). Without chromedriver it says it
 //! skipped, except in CI (`CI=true`), where that is a failure.
 
+mod serve_common;
+
 use dollop_host::serve;
 use fantoccini::{Client, ClientBuilder, Locator};
 use serde_json::{json, Value};
@@ -263,17 +265,10 @@ async fn run() {
     // data folder (the print history) read again by a second server at the end.
     let data = tempfile::tempdir().expect("data folder");
     let server = serve::start(serve::Args {
-        listen: "127.0.0.1:0".parse().expect("address"),
-        port: None,
-        auth: None,
-        config: None,
-        boards: Vec::new(),
-        demo: false,
         sim_speed: 3.0,
-        no_usb: true,
         sim_boards: 2,
         data: Some(data.path().to_path_buf()),
-        camera: None,
+        ..serve_common::args()
     })
     .await
     .expect("server starts");
@@ -328,17 +323,11 @@ async fn run() {
 /// key is refused (and the API with it), the right one opens the dashboard.
 async fn signed_in(c: &Client, data: &Path) {
     let server = serve::start(serve::Args {
-        listen: "127.0.0.1:0".parse().expect("address"),
-        port: None,
         auth: Some("browser key 1".into()),
-        config: None,
-        boards: Vec::new(),
-        demo: false,
         sim_speed: 1.0,
-        no_usb: true,
-        sim_boards: 1,
         data: Some(data.to_path_buf()),
         camera: Some(snapshot_server().await),
+        ..serve_common::args()
     })
     .await
     .expect("the guarded server starts");

@@ -11,6 +11,8 @@
 //! cancel, home and jog, refusals in plain text. Plus the octorest client library from
 //! PyPI (skipped with a message when it is not installed, except under CI).
 
+mod serve_common;
+
 use dollop_host::serve;
 use serde_json::Value;
 use std::io::{Read, Write};
@@ -21,17 +23,10 @@ const SQUARE: &str = include_str!("data/gcode-in/square-abs-e.gcode");
 
 fn args(data: &std::path::Path, demo: bool) -> serve::Args {
     serve::Args {
-        listen: "127.0.0.1:0".parse().expect("address"),
-        port: None,
         auth: Some(KEY.into()),
-        config: None,
-        boards: Vec::new(),
         demo,
-        sim_speed: 50.0,
-        no_usb: true,
-        sim_boards: 1,
         data: Some(data.to_path_buf()),
-        camera: None,
+        ..serve_common::args()
     }
 }
 

@@ -5,6 +5,8 @@
 //! `dollop inspect --suggest` does: every boundary found and the channel corrected. A
 //! camera that answers 404 and a dashboard without a camera are refused in words.
 
+mod serve_common;
+
 use dollop_host::serve;
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -60,17 +62,10 @@ fn camera() -> SocketAddr {
 
 fn args(data: &Path, camera: Option<String>) -> serve::Args {
     serve::Args {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        port: None,
-        auth: None,
         config: Some(root().join("../configs/seed-paper-valves.toml")),
-        boards: Vec::new(),
-        demo: false,
-        sim_speed: 50.0,
-        no_usb: true,
-        sim_boards: 1,
         data: Some(data.to_path_buf()),
         camera,
+        ..serve_common::args()
     }
 }
 

@@ -4,7 +4,7 @@
 //! the outputs to the safe state. Timers, pins and the watchdog itself are the board's.
 
 use super::safety::{force_safe, Commanded, Tracked};
-use super::{BoardMachine, FromLink, Order, LEAD_IN};
+use super::{BoardMachine, ControlOrder, FromLink, LEAD_IN};
 use crate::command::Command;
 use crate::config::Config;
 use crate::executor::{Executor, Fault, Report, RunState};
@@ -329,11 +329,11 @@ impl Control {
         self.exec_ticking = false;
     }
 
-    fn order(&mut self, order: Order, inputs: Inputs, out: &mut impl Outputs) {
+    fn order(&mut self, order: ControlOrder, inputs: Inputs, out: &mut impl Outputs) {
         let halted = matches!(self.active, Active::Halted);
         match order {
-            Order::EStop => self.halt_with(Halt::Fault(Fault::EStop), out),
-            Order::ClearFault => {
+            ControlOrder::EStop => self.halt_with(Halt::Fault(Fault::EStop), out),
+            ControlOrder::ClearFault => {
                 if halted && !inputs.estop {
                     if let Some(e) = self.exec.as_mut() {
                         e.clear_fault();
@@ -342,39 +342,39 @@ impl Control {
                     self.active = Active::Idle;
                 }
             }
-            Order::LoadConfig => {}
-            Order::Settings(s) => {
+            ControlOrder::LoadConfig => {}
+            ControlOrder::Settings(s) => {
                 if s.check().is_ok() && !matches!(self.active, Active::Homing(_)) {
                     self.settings = s;
                 }
             }
             _ if halted || self.exec.is_none() => {}
-            Order::Abort => self.abort(out),
-            Order::Pause => {
+            ControlOrder::Abort => self.abort(out),
+            ControlOrder::Pause => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     e.pause();
                 }
             }
-            Order::Park => {
+            ControlOrder::Park => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     e.park();
                 }
             }
             // Refused by the executor when not parked or not a syringe machine; the
             // link has checked that a job is paused.
-            Order::Refill => {
+            ControlOrder::Refill => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     let _ = e.refill();
                 }
             }
-            Order::Resume => {
+            ControlOrder::Resume => {
                 if let (Active::Job, Some(e)) = (self.active, self.exec.as_mut()) {
                     // The link refuses a resume with nothing paused; one racing the
                     // pause's end changes nothing.
                     let _ = e.resume();
                 }
             }
-            Order::LinkLost(policy) => match self.active {
+            ControlOrder::LinkLost(policy) => match self.active {
                 Active::Job => match policy {
                     LinkLossPolicy::Pause => {
                         if let Some(e) = self.exec.as_mut() {
@@ -387,7 +387,7 @@ impl Control {
                 Active::Homing(_) | Active::Jog(_) | Active::ValveTest => self.abort(out),
                 _ => {}
             },
-            Order::Home => {
+            ControlOrder::Home => {
                 if matches!(self.active, Active::Idle) {
                     Tracked {
                         out,
@@ -403,8 +403,8 @@ impl Control {
                     });
                 }
             }
-            Order::Jog { axis, um } => self.start_jog(axis, um, out),
-            Order::Valve { inlet, open } => {
+            ControlOrder::Jog { axis, um } => self.start_jog(axis, um, out),
+            ControlOrder::Valve { inlet, open } => {
                 let inlets = self.exec.as_ref().map_or(0, |e| e.machine().inlet_count());
                 if matches!(self.active, Active::Idle | Active::ValveTest)
                     && (inlet as usize) < inlets
@@ -421,7 +421,7 @@ impl Control {
                     };
                 }
             }
-            Order::Start {
+            ControlOrder::Start {
                 epoch,
                 start_um,
                 initial_material,

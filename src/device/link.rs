@@ -5,7 +5,7 @@
 //! policy. Frame bytes out go to a fixed buffer the board drains to USB.
 
 use super::store::JobStore;
-use super::{JobRecord, Order, ToControl};
+use super::{ControlOrder, JobRecord, ToControl};
 use crate::command::Command;
 use crate::config::Config;
 use crate::executor::RunState;
@@ -129,7 +129,7 @@ struct Feeder {
 }
 
 /// The link's state. One per board; `S` keeps the job.
-pub struct Link<S: JobStore> {
+pub struct BoardLink<S: JobStore> {
     reader: FrameReader,
     core: Core<S>,
 }
@@ -156,11 +156,11 @@ struct Core<S: JobStore> {
     stats: LinkStats,
 }
 
-impl<S: JobStore> Link<S> {
+impl<S: JobStore> BoardLink<S> {
     /// A link with no session, no config and an empty store. A constant constructor: the
     /// board keeps its link (6 KiB) in a static built at compile time.
     pub const fn new(store: S, info: BoardInfo) -> Self {
-        Link {
+        BoardLink {
             reader: FrameReader::new(),
             core: Core {
                 store,
@@ -556,12 +556,12 @@ impl<S: JobStore> Core<S> {
             Request::BeginJob(h) => self.begin_job(h, port),
             Request::EndJob => self.end_job(),
             Request::Start => self.start(&snap, port),
-            Request::Pause => ack(port, Order::Pause),
-            Request::Park => ack(port, Order::Park),
+            Request::Pause => ack(port, ControlOrder::Pause),
+            Request::Park => ack(port, ControlOrder::Park),
             Request::Refill => refill(&snap, port),
             Request::Resume => resume(&snap, port),
-            Request::Abort => self.stop(port, Order::Abort),
-            Request::EStop => self.stop(port, Order::EStop),
+            Request::Abort => self.stop(port, ControlOrder::Abort),
+            Request::EStop => self.stop(port, ControlOrder::EStop),
             Request::ClearFault => clear_fault(&snap, port),
             Request::Home => self.home(&snap, port),
             Request::Jog { axis, um } => self.jog(&snap, axis, um, port),
@@ -602,7 +602,7 @@ impl<S: JobStore> Core<S> {
         if !port.post_config(&machine) {
             return Err(Refusal::QueueFull);
         }
-        order(port, Order::LoadConfig)?;
+        order(port, ControlOrder::LoadConfig)?;
         self.config_hash = Some(job::config_hash(&c));
         self.config = Some(c);
         Ok(Reply::Ack)
@@ -610,7 +610,7 @@ impl<S: JobStore> Core<S> {
 
     fn settings(&mut self, s: Settings, port: &mut impl ToControl) -> Result<Reply, Refusal> {
         s.check().map_err(Refusal::Settings)?;
-        order(port, Order::Settings(s))?;
+        order(port, ControlOrder::Settings(s))?;
         self.settings = s;
         Ok(Reply::Ack)
     }
@@ -645,7 +645,7 @@ impl<S: JobStore> Core<S> {
         let epoch = self.epoch.wrapping_add(1);
         order(
             port,
-            Order::Start {
+            ControlOrder::Start {
                 epoch,
                 start_um: header.start_um,
                 initial_material: header.initial_material,
@@ -666,7 +666,7 @@ impl<S: JobStore> Core<S> {
     }
 
     /// Abort or e-stop: ordered whatever the state, and the job's feeding ends.
-    fn stop(&mut self, port: &mut impl ToControl, o: Order) -> Result<Reply, Refusal> {
+    fn stop(&mut self, port: &mut impl ToControl, o: ControlOrder) -> Result<Reply, Refusal> {
         order(port, o)?;
         self.feeder = None;
         Ok(Reply::Ack)
@@ -681,7 +681,7 @@ impl<S: JobStore> Core<S> {
         if snap.mode != Mode::Idle {
             return Err(Refusal::Busy { mode: snap.mode });
         }
-        ack(port, Order::Home)
+        ack(port, ControlOrder::Home)
     }
 
     /// A jog of the head within the config's travel limits, once homed.
@@ -718,7 +718,7 @@ impl<S: JobStore> Core<S> {
                 max_um,
             });
         }
-        ack(port, Order::Jog { axis, um })
+        ack(port, ControlOrder::Jog { axis, um })
     }
 
     /// A valve test on one of the config's inlets.
@@ -744,7 +744,7 @@ impl<S: JobStore> Core<S> {
         if !matches!(snap.mode, Mode::Idle | Mode::ValveTest) {
             return Err(Refusal::Busy { mode: snap.mode });
         }
-        ack(port, Order::Valve { inlet, open })
+        ack(port, ControlOrder::Valve { inlet, open })
     }
 
     #[inline(never)] // keeps the board's link frames small (see `receive`)
@@ -901,7 +901,7 @@ impl<S: JobStore> Core<S> {
         if watched
             && !self.lost_applied
             && port
-                .order(Order::LinkLost(self.settings.on_link_loss))
+                .order(ControlOrder::LinkLost(self.settings.on_link_loss))
                 .is_ok()
         {
             self.lost_applied = true;
@@ -1016,7 +1016,7 @@ impl<S: JobStore> Core<S> {
                 let mut buf = [0u8; FEED_READ];
                 let n = (f.len - f.offset).min(FEED_READ as u32) as usize;
                 if self.store.read(f.offset, &mut buf[..n]).is_err() {
-                    let _ = port.order(Order::Abort);
+                    let _ = port.order(ControlOrder::Abort);
                     self.feeder = None;
                     return;
                 }
@@ -1024,7 +1024,7 @@ impl<S: JobStore> Core<S> {
                 let r = f.decoder.feed(&buf[..n], |c| pending.push_back(c));
                 if !matches!(r, Ok(Ok(()))) {
                     // Checked before the start, so the store changed under the job.
-                    let _ = port.order(Order::Abort);
+                    let _ = port.order(ControlOrder::Abort);
                     self.feeder = None;
                     return;
                 }
@@ -1056,7 +1056,7 @@ fn halted(snap: &Snapshot) -> Result<(), Refusal> {
 }
 
 /// Orders `o` and acknowledges.
-fn ack(port: &mut impl ToControl, o: Order) -> Result<Reply, Refusal> {
+fn ack(port: &mut impl ToControl, o: ControlOrder) -> Result<Reply, Refusal> {
     order(port, o)?;
     Ok(Reply::Ack)
 }
@@ -1067,7 +1067,7 @@ fn refill(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> 
     if snap.mode != Mode::Job || snap.run != RunState::Paused {
         return Err(Refusal::NotPaused { run: snap.run });
     }
-    ack(port, Order::Refill)
+    ack(port, ControlOrder::Refill)
 }
 
 /// Resumes a pause, or one still coming to rest.
@@ -1076,7 +1076,7 @@ fn resume(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refusal> 
     if snap.mode != Mode::Job || !matches!(snap.run, RunState::Paused | RunState::Pausing) {
         return Err(Refusal::NotPaused { run: snap.run });
     }
-    ack(port, Order::Resume)
+    ack(port, ControlOrder::Resume)
 }
 
 /// Clears a fault; never while the e-stop input is active.
@@ -1084,10 +1084,10 @@ fn clear_fault(snap: &Snapshot, port: &mut impl ToControl) -> Result<Reply, Refu
     if snap.estop {
         return Err(Refusal::EStopActive);
     }
-    ack(port, Order::ClearFault)
+    ack(port, ControlOrder::ClearFault)
 }
 
-fn order(port: &mut impl ToControl, o: Order) -> Result<(), Refusal> {
+fn order(port: &mut impl ToControl, o: ControlOrder) -> Result<(), Refusal> {
     port.order(o).map_err(|_| Refusal::QueueFull)
 }
 

@@ -1,4 +1,4 @@
-//! The board's application logic, independent of any board: `Link` (USB requests, job
+//! The board's application logic, independent of any board: `BoardLink` (USB requests, job
 //! upload into a `JobStore`, feeding the running job) and `Control` (the control loop:
 //! executor, homing, jog, valve test, e-stop, faults, one path to the safe state). They
 //! share only what `ToControl`/`FromLink` carry: a queue of orders, a queue of job
@@ -9,14 +9,14 @@ pub mod control;
 pub mod link;
 pub mod safety;
 pub mod serve;
-pub mod sim;
+pub mod sim_board;
 pub mod store;
 
 pub use control::{Control, Inputs, ResetCause, Tick};
-pub use link::{BoardInfo, Link};
+pub use link::{BoardInfo, BoardLink};
 pub use safety::{force_safe, EStopGuard, Latch};
 pub use serve::{serve, HostPort, Pace, PortClosed};
-pub use sim::{Queues, SimBoard};
+pub use sim_board::{Queues, SimBoard};
 pub use store::{JobStore, RamStore};
 
 use crate::command::Command;
@@ -40,7 +40,7 @@ pub const LEAD_IN: u32 = 3;
 
 /// What the link asks of the control loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Order {
+pub enum ControlOrder {
     /// Begin job number `epoch`; its commands follow in the job queue.
     Start {
         /// Job number; job records of other numbers are dropped.
@@ -91,7 +91,7 @@ pub enum Order {
 /// One job command for the control loop, tagged with its job number.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JobRecord {
-    /// Job number (`Order::Start::epoch`).
+    /// Job number (`ControlOrder::Start::epoch`).
     pub epoch: u8,
     /// The command.
     pub cmd: Command,
@@ -100,7 +100,7 @@ pub struct JobRecord {
 /// The link's end of what it shares with the control loop.
 pub trait ToControl {
     /// Queues an order; gives it back when the queue is full.
-    fn order(&mut self, order: Order) -> Result<(), Order>;
+    fn order(&mut self, order: ControlOrder) -> Result<(), ControlOrder>;
     /// Queues a job command; gives it back when the queue is full.
     fn command(&mut self, record: JobRecord) -> Result<(), JobRecord>;
     /// Free places in the job queue.
@@ -120,7 +120,7 @@ pub trait ToControl {
 /// The control loop's end.
 pub trait FromLink {
     /// The next order, if any.
-    fn next_order(&mut self) -> Option<Order>;
+    fn next_order(&mut self) -> Option<ControlOrder>;
     /// The next job command, if any.
     fn next_command(&mut self) -> Option<JobRecord>;
     /// The machine in the mailbox, if any.

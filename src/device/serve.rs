@@ -1,13 +1,13 @@
 //! The link's main loop, independent of the transport and the executor: packets in from a
 //! `HostPort` (USB CDC-ACM, a UART), replies out, and the link's background work
-//! (`Link::poll`: store writes, job feeding, the silent-host timeout) at least once per
+//! (`BoardLink::poll`: store writes, job feeding, the silent-host timeout) at least once per
 //! `Pace` tick; `EitherPort` serves two transports (USB and a UART) through one link, with
 //! the same rules on either. Every path through the loop awaits the pace or the port, so it always
 //! yields to the rest of the board; every write has a deadline, so a host that stops
 //! reading cannot hold `poll` (and the link-loss policy) back. The board supplies the
 //! port and the pace; host tests drive the same loop with doubles.
 
-use super::link::Link;
+use super::link::BoardLink;
 use super::store::JobStore;
 use super::ToControl;
 use embassy_futures::select::{select, Either};
@@ -50,7 +50,7 @@ pub trait Pace {
 pub async fn serve<S: JobStore>(
     port: &mut impl HostPort,
     pace: &mut impl Pace,
-    link: &mut Link<S>,
+    link: &mut BoardLink<S>,
     control: &mut impl ToControl,
 ) -> ! {
     let mut rx = [0u8; PACKET];
@@ -90,7 +90,7 @@ pub async fn serve<S: JobStore>(
 async fn flush<S: JobStore>(
     port: &mut impl HostPort,
     pace: &mut impl Pace,
-    link: &mut Link<S>,
+    link: &mut BoardLink<S>,
 ) -> bool {
     let mut tx = [0u8; PACKET];
     let mut last = 0;

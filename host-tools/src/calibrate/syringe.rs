@@ -109,8 +109,9 @@ pub fn line_width(q_mm3_s: f64, v_mm_s: f64, c: f64) -> f64 {
     (4.0 / (PI * c)).sqrt() * (q_mm3_s / v_mm_s).sqrt()
 }
 
-/// Computes the calibration.
-pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
+/// The syringe's steps/mm^3 from its geometry and from a measured mass per step (with
+/// the density), and the one written: the measured one when there is one.
+fn scale(o: &Options) -> Result<(Option<f64>, Option<f64>, f64), CalError> {
     let geometric = match (o.diameter_mm, o.lead_mm) {
         (Some(d), Some(lead)) => {
             let d = positive(CalOption::Diameter, d)?;
@@ -144,6 +145,35 @@ pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
             sig(steps_per_mm3, 3)
         )));
     }
+    Ok((geometric, measured, steps_per_mm3))
+}
+
+/// The verdict on the measured (`m`) against the geometric (`g`) steps/mm^3.
+fn agreement(g: f64, m: f64) -> String {
+    let dev = m / g - 1.0;
+    if dev.abs() < 0.03 {
+        format!(
+            "measured and geometric steps/mm^3 agree within {:.1} %",
+            100.0 * dev.abs()
+        )
+    } else if m > g {
+        format!(
+            "the syringe delivers {:.1} % less paste per step than its geometry says \
+             (air, plunger seal or compression): the measured value is written",
+            100.0 * (1.0 - g / m)
+        )
+    } else {
+        format!(
+            "the syringe delivers {:.1} % more paste per step than its geometry allows: \
+             check the bore, lead, gearing and microsteps; the measured value is written",
+            100.0 * (g / m - 1.0)
+        )
+    }
+}
+
+/// Computes the calibration.
+pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
+    let (geometric, measured, steps_per_mm3) = scale(o)?;
     let c = positive(CalOption::Shape, o.shape_c)?;
     let speed = match (o.speed_mm_s, &o.config) {
         (Some(v), _) => Some(positive(CalOption::Speed, v)?),
@@ -194,25 +224,7 @@ pub fn calibrate(o: &Options) -> Result<Calibration, CalError> {
     }
     let mut verdicts = Vec::new();
     if let (Some(g), Some(m)) = (geometric, measured) {
-        let dev = m / g - 1.0;
-        verdicts.push(if dev.abs() < 0.03 {
-            format!(
-                "measured and geometric steps/mm^3 agree within {:.1} %",
-                100.0 * dev.abs()
-            )
-        } else if m > g {
-            format!(
-                "the syringe delivers {:.1} % less paste per step than its geometry says \
-                 (air, plunger seal or compression): the measured value is written",
-                100.0 * (1.0 - g / m)
-            )
-        } else {
-            format!(
-                "the syringe delivers {:.1} % more paste per step than its geometry allows: \
-                 check the bore, lead, gearing and microsteps; the measured value is written",
-                100.0 * (g / m - 1.0)
-            )
-        });
+        verdicts.push(agreement(g, m));
     }
     if let (Some((need, max)), Some(cfg)) = (config_rate, o.config.as_ref()) {
         // Both figures the user can find in the config, beside the one the core derives.

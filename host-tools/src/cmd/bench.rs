@@ -188,11 +188,7 @@ pub fn mesh_slicing(ctx: &Ctx) -> anyhow::Result<()> {
 pub fn job_size(_ctx: &Ctx) -> anyhow::Result<()> {
     let config = example_config()?;
     let machine = slicer::validate(Path::new("example config"), &config)?;
-    let names: Vec<String> = config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
+    let names = crate::slicer::material_names(&config);
     for (label, files, opts) in bundled() {
         let s = slicer::slice_files(&files, &config, &opts)?;
         let segs = s.header.print_segments.max(1) as f64;

@@ -316,6 +316,16 @@ struct Prepared {
     plotter: Plotter,
 }
 
+/// A calibration's report, fragment, output and plot, for the calibrations whose plot
+/// takes only the path and the staged files.
+macro_rules! ran {
+    ($cal:ident, $output:expr) => {{
+        let (report, fragment) = ($cal.report(), $cal.fragment());
+        let plotter: Plotter = Box::new(move |p, o| $cal.plot(p, o));
+        (report, fragment, $output, plotter)
+    }};
+}
+
 fn prepare(args: Args) -> Result<Prepared, CalError> {
     let why_not = match &args.what {
         What::Rheology(_) => "no fitted model is one the core accepts (see the verdicts)",
@@ -330,133 +340,50 @@ fn prepare(args: Args) -> Result<Prepared, CalError> {
         What::Camera(_) => "give --target-width MM for the nozzle speed to write",
         What::Syringe(_) => "",
     };
-    let (mut text, fragment, output, plotter): (String, Option<String>, Output, Plotter) =
-        match args.what {
-            What::Rheology(a) => {
-                let cal = rheology::calibrate(
-                    &a.data,
-                    rheology::Options {
-                        kind: a.kind,
-                        limits: a.limits.get(),
-                        ..Default::default()
-                    },
-                )?;
-                let fragment = cal.fragment();
-                (
-                    cal.report(),
-                    fragment,
-                    a.output,
-                    Box::new(move |p, o| cal.plot(p, o)),
-                )
-            }
-            What::Flow(a) => {
-                let config = a.config.as_deref().map(load_config).transpose()?;
-                let cal = flow::calibrate(
-                    &a.data,
-                    &flow::Options {
-                        unit: a.rate_unit,
-                        density_g_ml: a.density,
-                        config,
-                        speed_mm_s: a.speed,
-                        material: a.material,
-                        limits: a.limits.get(),
-                        ..Default::default()
-                    },
-                )?;
-                let fragment = cal.fragment();
-                (
-                    cal.report(),
-                    fragment,
-                    a.output,
-                    Box::new(move |p, o| cal.plot(p, o)),
-                )
-            }
-            What::Lag(a) => {
-                let cal = lag::calibrate(
-                    &a.data,
-                    lag::Options {
-                        time_unit: a.time_unit,
-                        inlet: a.inlet,
-                        steps_per_mm3: a.steps_per_mm3,
-                        limits: a.limits.get(),
-                        ..Default::default()
-                    },
-                )?;
-                let fragment = cal.fragment();
-                (
-                    cal.report(),
-                    fragment,
-                    a.output,
-                    Box::new(move |p, o| cal.plot(p, o)),
-                )
-            }
-            What::Camera(a) => {
-                let config = a.config.as_deref().map(load_config).transpose()?;
-                let mut o = camera::Options::new(a.fps, a.mm_per_px);
-                o.target_width_mm = a.target_width;
-                o.nozzle_mm = a.nozzle_diameter;
-                o.roi = a.roi;
-                o.window = a.window;
-                o.config = config;
-                o.limits = frames::Limits {
-                    max_frames: a.max_frames,
-                    max_pixels: a.max_pixels,
-                };
-                let fps = a.fps;
-                let cal = camera::calibrate(&a.frames, &o)?;
-                let fragment = cal.fragment();
-                (
-                    cal.report(),
-                    fragment,
-                    a.output,
-                    Box::new(move |p, o| cal.plot(p, fps, o)),
-                )
-            }
-            What::Syringe(a) => {
-                let config = a.config.as_deref().map(load_config).transpose()?;
-                let lag_cal = match &a.lag {
-                    Some(path) => Some(lag::calibrate(
-                        path,
-                        lag::Options {
-                            time_unit: a.lag_time_unit,
-                            inlet: InletKind::Syringe,
-                            limits: a.limits.get(),
-                            ..Default::default()
-                        },
-                    )?),
-                    None => None,
-                };
-                let cal = syringe::calibrate(&syringe::Options {
-                    diameter_mm: a.diameter,
-                    lead_mm: a.lead,
-                    steps_per_rev: a.steps_per_rev,
-                    microsteps: a.microsteps,
-                    gear_ratio: a.gear_ratio,
-                    mg_per_step: a.mg_per_step,
+    let (mut text, fragment, output, plotter): Ran = match args.what {
+        What::Rheology(a) => {
+            let cal = rheology::calibrate(
+                &a.data,
+                rheology::Options {
+                    kind: a.kind,
+                    limits: a.limits.get(),
+                    ..Default::default()
+                },
+            )?;
+            ran!(cal, a.output)
+        }
+        What::Flow(a) => {
+            let config = a.config.as_deref().map(load_config).transpose()?;
+            let cal = flow::calibrate(
+                &a.data,
+                &flow::Options {
+                    unit: a.rate_unit,
                     density_g_ml: a.density,
-                    flow_mm3_s: a.flow,
-                    step_rate_hz: a.step_rate,
-                    speed_mm_s: a.speed,
-                    shape_c: a.shape,
-                    lag: lag_cal.as_ref().map(|l| l.weibull),
                     config,
-                })?;
-                let mut report = String::new();
-                if let Some(l) = &lag_cal {
-                    report.push_str(&l.report());
-                }
-                report.push_str(&cal.report());
-                let plotter: Plotter = match lag_cal {
-                    Some(l) => Box::new(move |p, o| l.plot(p, o)),
-                    None => Box::new(|_, _| {
-                        Err(CalError::arg(
-                            "--plot draws the lag fit: give --lag LAG.csv",
-                        ))
-                    }),
-                };
-                (report, Some(cal.fragment()), a.output, plotter)
-            }
-        };
+                    speed_mm_s: a.speed,
+                    material: a.material,
+                    limits: a.limits.get(),
+                    ..Default::default()
+                },
+            )?;
+            ran!(cal, a.output)
+        }
+        What::Lag(a) => {
+            let cal = lag::calibrate(
+                &a.data,
+                lag::Options {
+                    time_unit: a.time_unit,
+                    inlet: a.inlet,
+                    steps_per_mm3: a.steps_per_mm3,
+                    limits: a.limits.get(),
+                    ..Default::default()
+                },
+            )?;
+            ran!(cal, a.output)
+        }
+        What::Camera(a) => camera_run(a)?,
+        What::Syringe(a) => syringe_run(a)?,
+    };
     match &fragment {
         Some(f) => {
             let _ = write!(text, "\nfragment:\n{f}");
@@ -504,3 +431,76 @@ fn finish(p: Prepared, text: &mut String) -> Result<(), CalError> {
 }
 
 type Plotter = Box<dyn FnOnce(&Path, &mut StagedFiles) -> Result<(), CalError>>;
+
+/// What one calibration prints, the fragment it writes, where, and its plot.
+type Ran = (String, Option<String>, Output, Plotter);
+
+/// `dollop calibrate camera`.
+fn camera_run(a: CameraArgs) -> Result<Ran, CalError> {
+    let config = a.config.as_deref().map(load_config).transpose()?;
+    let mut o = camera::Options::new(a.fps, a.mm_per_px);
+    o.target_width_mm = a.target_width;
+    o.nozzle_mm = a.nozzle_diameter;
+    o.roi = a.roi;
+    o.window = a.window;
+    o.config = config;
+    o.limits = frames::Limits {
+        max_frames: a.max_frames,
+        max_pixels: a.max_pixels,
+    };
+    let fps = a.fps;
+    let cal = camera::calibrate(&a.frames, &o)?;
+    let fragment = cal.fragment();
+    Ok((
+        cal.report(),
+        fragment,
+        a.output,
+        Box::new(move |p, o| cal.plot(p, fps, o)),
+    ))
+}
+
+/// `dollop calibrate syringe` (with the lag fit when `--lag` is given).
+fn syringe_run(a: SyringeArgs) -> Result<Ran, CalError> {
+    let config = a.config.as_deref().map(load_config).transpose()?;
+    let lag_cal = match &a.lag {
+        Some(path) => Some(lag::calibrate(
+            path,
+            lag::Options {
+                time_unit: a.lag_time_unit,
+                inlet: InletKind::Syringe,
+                limits: a.limits.get(),
+                ..Default::default()
+            },
+        )?),
+        None => None,
+    };
+    let cal = syringe::calibrate(&syringe::Options {
+        diameter_mm: a.diameter,
+        lead_mm: a.lead,
+        steps_per_rev: a.steps_per_rev,
+        microsteps: a.microsteps,
+        gear_ratio: a.gear_ratio,
+        mg_per_step: a.mg_per_step,
+        density_g_ml: a.density,
+        flow_mm3_s: a.flow,
+        step_rate_hz: a.step_rate,
+        speed_mm_s: a.speed,
+        shape_c: a.shape,
+        lag: lag_cal.as_ref().map(|l| l.weibull),
+        config,
+    })?;
+    let mut report = String::new();
+    if let Some(l) = &lag_cal {
+        report.push_str(&l.report());
+    }
+    report.push_str(&cal.report());
+    let plotter: Plotter = match lag_cal {
+        Some(l) => Box::new(move |p, o| l.plot(p, o)),
+        None => Box::new(|_, _| {
+            Err(CalError::arg(
+                "--plot draws the lag fit: give --lag LAG.csv",
+            ))
+        }),
+    };
+    Ok((report, Some(cal.fragment()), a.output, plotter))
+}

@@ -8,6 +8,7 @@ use crate::slicer::{
     self, gcode_exec, image::ImageOptions, job_file, output, preview, SliceOptions,
 };
 use anyhow::Context;
+use dollop::config::Config;
 use dollop_sim::Job;
 use std::path::{Path, PathBuf};
 
@@ -57,29 +58,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let tmp = tmp.path();
     let machine_path = dir.join("machine.toml");
     let config = slicer::load_config(&input(tmp, "machine.toml", MACHINE.as_bytes())?)?;
-    let (name, inputs, opts): (&str, &[(&str, &[u8])], SliceOptions) = match a.design {
-        Design::Logo => (
-            "logo",
-            &[("logo.png", LOGO)],
-            SliceOptions {
-                image: ImageOptions {
-                    width_mm: Some(40.0),
-                    ..Default::default()
-                },
-                ..Default::default()
-            },
-        ),
-        Design::Chessboard => (
-            "chessboard",
-            &[("chessboard.png", CHESSBOARD)],
-            SliceOptions::default(),
-        ),
-        Design::Cube => (
-            "cube",
-            &[("cube-shell.stl", CUBE_SHELL), ("cube-ball.stl", CUBE_BALL)],
-            SliceOptions::default(),
-        ),
-    };
+    let (name, inputs, opts) = bundled(a.design);
     let files = inputs
         .iter()
         .map(|(n, b)| input(tmp, n, b))
@@ -91,26 +70,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let sliced = slicer::slice_files(&files, &config, &opts)?;
     let job_path = dir.join(format!("{name}.dlp"));
     slicer::validate(&machine_path, &config)?;
-    let names: Vec<String> = config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
-    // The G-code `dollop slice --gcode` writes by default: from the executor's own run.
-    let (gcode_text, _) = gcode_exec::export(
-        &config,
-        &sliced.commands,
-        sliced.header.start_um,
-        sliced.header.initial_material,
-        &names,
-        &gcode_exec::RunExport {
-            host: crate::slicer::gcode_dialect::HostText {
-                progress: true,
-                ..Default::default()
-            },
-            ..gcode_exec::RunExport::default()
-        },
-    )?;
+    let names = crate::slicer::material_names(&config);
+    let gcode_text = gcode_of(&config, &sliced, &names)?;
     let gcode_path = dir.join(format!("{name}.gcode"));
     let preview_path = dir.join(format!("{name}-toolpath.png"));
     let preview_img = preview::figure(
@@ -194,4 +155,57 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// A bundled design: its name, its files (name, bytes) and how it is sliced.
+fn bundled(
+    design: Design,
+) -> (
+    &'static str,
+    &'static [(&'static str, &'static [u8])],
+    SliceOptions,
+) {
+    match design {
+        Design::Logo => (
+            "logo",
+            &[("logo.png", LOGO)],
+            SliceOptions {
+                image: ImageOptions {
+                    width_mm: Some(40.0),
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        ),
+        Design::Chessboard => (
+            "chessboard",
+            &[("chessboard.png", CHESSBOARD)],
+            SliceOptions::default(),
+        ),
+        Design::Cube => (
+            "cube",
+            &[("cube-shell.stl", CUBE_SHELL), ("cube-ball.stl", CUBE_BALL)],
+            SliceOptions::default(),
+        ),
+    }
+}
+
+/// The G-code `dollop slice --gcode` writes by default for `sliced`: from the executor's
+/// own run.
+fn gcode_of(config: &Config, sliced: &slicer::Sliced, names: &[String]) -> anyhow::Result<String> {
+    let (text, _) = gcode_exec::export(
+        config,
+        &sliced.commands,
+        sliced.header.start_um,
+        sliced.header.initial_material,
+        names,
+        &gcode_exec::RunExport {
+            host: crate::slicer::gcode_dialect::HostText {
+                progress: true,
+                ..Default::default()
+            },
+            ..gcode_exec::RunExport::default()
+        },
+    )?;
+    Ok(text)
 }

@@ -84,21 +84,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             ins.plan.layers
         );
     }
-    let names: Vec<String> = config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
-    print!("{}", ins.report(&names));
+    print!("{}", ins.report(&slicer::material_names(&config)));
     let mut staged = output::StagedFiles::new();
     let mut written_out = a.out.is_some();
     if a.suggest {
-        let job = dollop_sim::Job {
-            start_um: header.start_um,
-            initial_material: header.initial_material,
-            commands: commands.clone(),
-        };
-        let s = suggest::suggest(&ins, &config, &job);
+        let s = suggest::for_job(
+            &ins,
+            &config,
+            header.start_um,
+            header.initial_material,
+            &commands,
+        );
         println!("suggestions:");
         for l in &s.lines {
             println!("  {l}");
@@ -109,7 +105,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 output::stage(&mut staged, path, |w| w.write_all(f.as_bytes()))?;
             }
             // A print that needs no correction is the good outcome: say so, exit 0.
-            (Some(path), None) if !s.fits.is_empty() && s.rms_now <= suggest::DEADBAND_MM => {
+            (Some(path), None) if s.none_needed() => {
                 println!(
                     "no correction needed: the config already puts the boundaries where the photo shows them; {} not written",
                     path.display()

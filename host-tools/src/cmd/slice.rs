@@ -9,7 +9,8 @@ use crate::slicer::gcode_exec::{self, RunExport};
 use crate::slicer::image::{Mirror, Rotation};
 use crate::slicer::preview::{self, PreviewOptions};
 use crate::slicer::{
-    self, output, GcodeRequest, GcodeStyle, Limits, SliceError, SliceOption, SliceRequest,
+    self, output, GcodeRequest, GcodeStyle, Limits, Names, SliceError, SliceLimit, SliceOption,
+    SliceRequest,
 };
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use std::path::{Path, PathBuf};
@@ -244,15 +245,40 @@ pub fn flag(o: SliceOption) -> &'static str {
         SliceOption::Connect => "--connect-mm",
         SliceOption::Prime => "--prime-mm",
         SliceOption::GcodePorts => "--gcode-ports",
+        SliceOption::Width => "--width-mm",
+        SliceOption::Height => "--height-mm",
+        SliceOption::Size => "--width-mm/--height-mm",
+        SliceOption::Threshold => "--threshold",
+        SliceOption::Markers => "--markers",
     }
 }
 
-/// A slicer error as the command line says it: a refused option by its flag.
-fn flagged(e: SliceError) -> anyhow::Error {
-    match e {
-        SliceError::BadOption(o) => anyhow::anyhow!(o.message(flag(o.option))),
-        e => e.into(),
+/// The flag that sets a slice's limit.
+pub fn limit_flag(l: SliceLimit) -> &'static str {
+    match l {
+        SliceLimit::Pixels => "--max-pixels",
+        SliceLimit::Segments => "--max-segments",
+        SliceLimit::Triangles => "--max-triangles",
+        SliceLimit::ThreeMfSize => "--max-3mf-mb",
+        SliceLimit::GcodeSize => "--gcode-max-mb",
     }
+}
+
+/// The slicer's options and limits by the flags that set them.
+pub struct Flags;
+
+impl Names for Flags {
+    fn option(&self, o: SliceOption) -> &'static str {
+        flag(o)
+    }
+    fn limit(&self, l: SliceLimit) -> &'static str {
+        limit_flag(l)
+    }
+}
+
+/// A slicer error as the command line says it: options and limits by their flags.
+pub fn in_flags(e: &SliceError) -> String {
+    e.message(&Flags)
 }
 
 /// Largest start or end G-code file, bytes: a few hundred lines is already a long one.
@@ -293,7 +319,7 @@ fn default_out(design: &Path) -> PathBuf {
 /// Runs `dollop slice`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let req = a.request();
-    let opts = req.options().map_err(flagged)?;
+    let opts = req.options()?;
     let config = slicer::load_config(&a.config)?;
     let machine = slicer::validate(&a.config, &config)?;
     if a.designs.iter().any(|d| gcode_in::is_gcode(d)) {
@@ -377,8 +403,7 @@ fn finish(
         .gcode
         .as_ref()
         .map(|_| gcode_text(req, &host, &config, &machine, &sliced))
-        .transpose()
-        .map_err(flagged)?;
+        .transpose()?;
     let out = a.out.clone().unwrap_or_else(|| match a.designs.first() {
         Some(d) => default_out(d),
         None => PathBuf::from("calibration.dlp"),
@@ -393,11 +418,7 @@ fn finish(
         output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
     }
     if let Some(path) = &a.preview {
-        let names: Vec<String> = config
-            .inlets
-            .iter()
-            .map(|i| i.material.to_string())
-            .collect();
+        let names = crate::slicer::material_names(&config);
         let img = preview::figure(
             &sliced.commands,
             sliced.header.start_um,
@@ -479,12 +500,8 @@ fn gcode_text(
     config: &dollop::config::Config,
     machine: &dollop::Machine<f64, 4>,
     sliced: &slicer::Sliced,
-) -> Result<(String, gcode::GcodeStats), SliceError> {
-    let names: Vec<String> = config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
+) -> anyhow::Result<(String, gcode::GcodeStats)> {
+    let names = crate::slicer::material_names(config);
     let style = match req.gcode.style.profile() {
         Some(style) => style,
         None => {
@@ -506,7 +523,7 @@ fn gcode_text(
                 &mut |done| bar.set_position(done),
             );
             bar.finish_and_clear();
-            return r;
+            return Ok(r?);
         }
     };
     if req.gcode.dialect != Kind::Plain
@@ -514,19 +531,19 @@ fn gcode_text(
         || host.start.is_some()
         || host.end.is_some()
     {
-        return Err(SliceError::Option(format!(
+        anyhow::bail!(
             "--gcode-dialect, --gcode-ports, --gcode-start and --gcode-end apply to --gcode-style run, not {}",
             req.gcode.style.name()
-        )));
+        );
     }
-    gcode::export(
+    Ok(gcode::export(
         &sliced.commands,
         sliced.header.start_um,
         sliced.header.initial_material,
         machine,
         &names,
         style,
-    )
+    )?)
 }
 
 /// An image sliced without a size: one pixel per line pitch, often not what was meant.

@@ -558,6 +558,25 @@ impl Drift {
     }
 }
 
+/// Where the field's terms are centred: the mean of the found boundaries, or the middle
+/// of the design when none was found.
+fn centre(plan: &Plan, found: &[Found]) -> [f64; 2] {
+    let n = found.len();
+    let mut c = [0.0; 2];
+    for f in found {
+        let p = plan.boundaries[f.index].at;
+        c[0] += p[0] / n.max(1) as f64;
+        c[1] += p[1] / n.max(1) as f64;
+    }
+    if n == 0 {
+        c = [
+            0.5 * (plan.lo[0] + plan.hi[0]),
+            0.5 * (plan.lo[1] + plan.hi[1]),
+        ];
+    }
+    c
+}
+
 /// The registration error that `found` reveals. Anything the machine does moves a
 /// boundary along its bead the same way whichever way the bead runs; a misregistered
 /// photo moves it along a fixed direction on the plate, so beads running opposite ways
@@ -607,18 +626,7 @@ pub fn drift(plan: &Plan, found: &[Found], edges: &[Edge], px_mm: f64) -> Drift 
         }
     }
     let n = found.len();
-    let mut c = [0.0; 2];
-    for f in found {
-        let p = plan.boundaries[f.index].at;
-        c[0] += p[0] / n.max(1) as f64;
-        c[1] += p[1] / n.max(1) as f64;
-    }
-    if n == 0 {
-        c = [
-            0.5 * (plan.lo[0] + plan.hi[0]),
-            0.5 * (plan.lo[1] + plan.hi[1]),
-        ];
-    }
+    let c = centre(plan, found);
     let out = Drift {
         c,
         unpinned: std::array::from_fn(|a| {

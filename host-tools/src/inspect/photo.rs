@@ -4,7 +4,7 @@
 //! largest region that is not plate. Registering and classifying are other modules'.
 
 use super::error::InspectError;
-use image::{GrayImage, Luma, RgbImage};
+use image::{GrayImage, ImageBuffer, Luma, RgbImage};
 use imageproc::region_labelling::{connected_components, Connectivity};
 use std::path::Path;
 
@@ -151,21 +151,7 @@ pub fn from_image(path: &Path, img: &RgbImage) -> Result<Photo, InspectError> {
         })
         .collect();
     // Light and contrast first: nothing below can be trusted in a dark or flat photo.
-    let mut l: Vec<f32> = rgb.iter().step_by(7).map(|&c| lum(c)).collect();
-    l.sort_unstable_by(f32::total_cmp);
-    let pct = |q: f64| l[((l.len() - 1) as f64 * q) as usize];
-    if pct(0.5) < 0.08 || pct(0.99) < 0.2 {
-        return Err(bad(format!(
-            "too dark to tell the materials apart (median brightness {:.0} %, brightest {:.0} %); light the print evenly and expose for the plate",
-            100.0 * pct(0.5),
-            100.0 * pct(0.99)
-        )));
-    }
-    if pct(0.99) - pct(0.01) < 0.06 {
-        return Err(bad(
-            "the photo has almost no contrast: no print stands out from the plate".into(),
-        ));
-    }
+    check_light(&rgb).map_err(bad)?;
     // The plate fills the border of a photo of a print.
     let band = (w.min(h) / 30).max(2);
     let mut border: Vec<[f32; 3]> = Vec::new();
@@ -244,6 +230,43 @@ pub fn from_image(path: &Path, img: &RgbImage) -> Result<Photo, InspectError> {
             0
         }])
     });
+    let blobs = blobs(&labels, &area, best, best_area);
+    Ok(Photo {
+        size: (w, h),
+        rgb: even,
+        plate,
+        print,
+        print_px: best_area,
+        blobs,
+    })
+}
+
+/// Refuses a photo too dark or too flat to tell the materials apart (the reason).
+fn check_light(rgb: &[[f32; 3]]) -> Result<(), String> {
+    let mut l: Vec<f32> = rgb.iter().step_by(7).map(|&c| lum(c)).collect();
+    l.sort_unstable_by(f32::total_cmp);
+    let pct = |q: f64| l[((l.len() - 1) as f64 * q) as usize];
+    if pct(0.5) < 0.08 || pct(0.99) < 0.2 {
+        return Err(format!(
+            "too dark to tell the materials apart (median brightness {:.0} %, brightest {:.0} %); light the print evenly and expose for the plate",
+            100.0 * pct(0.5),
+            100.0 * pct(0.99)
+        ));
+    }
+    if pct(0.99) - pct(0.01) < 0.06 {
+        return Err("the photo has almost no contrast: no print stands out from the plate".into());
+    }
+    Ok(())
+}
+
+/// The other regions that stand out from the plate (`labels`, `area` by label), beside
+/// the print (`best`, `best_area` px): the largest `MAX_BLOBS` of at least 1/2000 of it.
+fn blobs(
+    labels: &ImageBuffer<Luma<u32>, Vec<u32>>,
+    area: &[u64],
+    best: usize,
+    best_area: u64,
+) -> Vec<Blob> {
     let min_blob = (best_area / 2000).max(20);
     let mut keep: Vec<usize> = (1..area.len())
         .filter(|&l| l != best && area[l] >= min_blob)
@@ -265,14 +288,7 @@ pub fn from_image(path: &Path, img: &RgbImage) -> Result<Photo, InspectError> {
             b.px.push([x, y]);
         }
     }
-    Ok(Photo {
-        size: (w, h),
-        rgb: even,
-        plate,
-        print,
-        print_px: best_area,
-        blobs,
-    })
+    blobs
 }
 
 /// Fits log brightness of the plate pixels (relative to `plate_l`) as a quadratic in

@@ -29,6 +29,22 @@ pub struct Fit {
     pub rms: f64,
 }
 
+/// [`suggest`] for the job of a job file (its start, first material and commands).
+pub fn for_job(
+    i: &Inspection,
+    config: &Config,
+    start_um: [i32; 3],
+    initial_material: u8,
+    commands: &[dollop::Command],
+) -> Suggestion {
+    let job = Job {
+        start_um,
+        initial_material,
+        commands: commands.to_vec(),
+    };
+    suggest(i, config, &job)
+}
+
 /// The corrections.
 #[derive(Clone, Debug)]
 pub struct Suggestion {
@@ -202,6 +218,14 @@ fn golden(mut lo: f64, mut hi: f64, iters: usize, f: &mut impl FnMut(f64) -> f64
         (a, fa)
     } else {
         (b, fb)
+    }
+}
+
+impl Suggestion {
+    /// No correction needed: parameters were fitted and the config as it is already puts
+    /// the boundaries within the dead band of where the photo shows them.
+    pub fn none_needed(&self) -> bool {
+        self.fragment.is_none() && !self.fits.is_empty() && self.rms_now <= DEADBAND_MM
     }
 }
 

@@ -74,25 +74,11 @@ pub fn detect() -> Result<String, LinkError> {
     }
     match found.len() {
         1 => Ok(found.remove(0)),
-        0 => Err(LinkError::Port(format!(
-            "no dollop board found (USB {USB_VID:04x}:{USB_PID:04x}, \"{USB_PRODUCT}\"); connect it, or name its port with --port PATH{}",
-            if ports.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " (serial ports present: {})",
-                    ports
-                        .iter()
-                        .map(|p| p.port_name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            }
-        ))),
-        _ => Err(LinkError::Port(format!(
-            "several dollop boards found ({}); choose one with --port PATH",
-            found.join(", ")
-        ))),
+        0 => Err(LinkError::NoBoard {
+            usb: format!("USB {USB_VID:04x}:{USB_PID:04x}, \"{USB_PRODUCT}\""),
+            present: ports.iter().map(|p| p.port_name.clone()).collect(),
+        }),
+        _ => Err(LinkError::SeveralBoards { found }),
     }
 }
 

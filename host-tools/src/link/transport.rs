@@ -46,7 +46,21 @@ pub enum LinkError {
     /// The board answered something that makes no sense here.
     #[error("unexpected answer from the board: {0}")]
     Protocol(String),
-    /// No board or several boards found.
+    /// No dollop board among the serial ports.
+    #[error("{}", no_board(.usb, .present, None))]
+    NoBoard {
+        /// What a dollop board is on USB (`USB 1209:0001, "dollop controller"`).
+        usb: String,
+        /// The serial ports there are.
+        present: Vec<String>,
+    },
+    /// Several dollop boards, and none named.
+    #[error("{}", several_boards(.found, None))]
+    SeveralBoards {
+        /// Their ports.
+        found: Vec<String>,
+    },
+    /// A port could not be listed or opened.
     #[error("{0}")]
     Port(String),
     /// The host gave up the operation because an Abort was asked for meanwhile.
@@ -55,6 +69,36 @@ pub enum LinkError {
     /// Operating-system error on the port.
     #[error("serial port: {0}")]
     Io(#[from] std::io::Error),
+}
+
+impl LinkError {
+    /// The message with the option that names a port given as `port` (the command line's
+    /// `--port PATH`); `Display` names none.
+    pub fn message(&self, port: Option<&str>) -> String {
+        match self {
+            LinkError::NoBoard { usb, present } => no_board(usb, present, port),
+            LinkError::SeveralBoards { found } => several_boards(found, port),
+            e => e.to_string(),
+        }
+    }
+}
+
+fn no_board(usb: &str, present: &[String], port: Option<&str>) -> String {
+    let with = port.map(|p| format!(" with {p}")).unwrap_or_default();
+    let present = if present.is_empty() {
+        String::new()
+    } else {
+        format!(" (serial ports present: {})", present.join(", "))
+    };
+    format!("no dollop board found ({usb}); connect it, or name its port{with}{present}")
+}
+
+fn several_boards(found: &[String], port: Option<&str>) -> String {
+    let how = port.map_or("by its port".to_string(), |p| format!("with {p}"));
+    format!(
+        "several dollop boards found ({}); choose one {how}",
+        found.join(", ")
+    )
 }
 
 /// What an Abort cut short.

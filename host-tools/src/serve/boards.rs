@@ -12,29 +12,29 @@ use super::controls;
 use super::history::{History, Record};
 use super::jobs::JobEntry;
 use super::lock::lock;
-use super::simlink::SimLink;
+use super::paced_board::PacedBoard;
 use super::Args;
 use crate::link::{
     mem_options, ops, serial, Cancelled, Client, JobFile, LinkError, Options, SerialLink, Transport,
 };
-use dollop::wire::{Halt, JobSlot, Mode, Request, Status};
+use dollop::wire::{Halt, JobSlot, Mode, Request, Snapshot, Status};
 use dollop::{Axis, RunState};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// A board's link: a port, or the simulated board.
-pub enum Link {
+/// A board's connection: a port, or the simulated board (paced to the wall clock).
+pub enum Connection {
     /// A serial device or `tcp:HOST:PORT`.
     Serial(SerialLink),
     /// The simulated board.
-    Sim(Box<SimLink>),
+    Simulated(Box<PacedBoard>),
 }
 
-impl Link {
+impl Connection {
     fn catch_up(&mut self) {
-        if let Link::Sim(s) = self {
+        if let Connection::Simulated(s) = self {
             s.catch_up();
         }
     }
@@ -46,7 +46,7 @@ impl Link {
 /// orders never see the flag).
 pub struct Cancellable {
     /// The link.
-    pub link: Link,
+    pub link: Connection,
     cancel: Arc<AtomicBool>,
     armed: bool,
 }
@@ -81,35 +81,35 @@ impl Transport for Cancellable {
     }
 }
 
-impl Transport for Link {
+impl Transport for Connection {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
         match self {
-            Link::Serial(s) => s.send(bytes),
-            Link::Sim(s) => s.send(bytes),
+            Connection::Serial(s) => s.send(bytes),
+            Connection::Simulated(s) => s.send(bytes),
         }
     }
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
         match self {
-            Link::Serial(s) => s.recv(buf, timeout),
-            Link::Sim(s) => s.recv(buf, timeout),
+            Connection::Serial(s) => s.recv(buf, timeout),
+            Connection::Simulated(s) => s.recv(buf, timeout),
         }
     }
     fn now(&self) -> Duration {
         match self {
-            Link::Serial(s) => s.now(),
-            Link::Sim(s) => s.now(),
+            Connection::Serial(s) => s.now(),
+            Connection::Simulated(s) => s.now(),
         }
     }
     fn sleep(&mut self, d: Duration) {
         match self {
-            Link::Serial(s) => s.sleep(d),
-            Link::Sim(s) => s.sleep(d),
+            Connection::Serial(s) => s.sleep(d),
+            Connection::Simulated(s) => s.sleep(d),
         }
     }
     fn reconnect(&mut self) -> Result<(), LinkError> {
         match self {
-            Link::Serial(s) => s.reconnect(),
-            Link::Sim(s) => s.reconnect(),
+            Connection::Serial(s) => s.reconnect(),
+            Connection::Simulated(s) => s.reconnect(),
         }
     }
 }
@@ -117,7 +117,7 @@ impl Transport for Link {
 pub use super::view::{Queued, View};
 
 /// An order for a board's worker, with where the answer goes.
-pub enum Order {
+pub enum WorkerOrder {
     /// Queue a job (and start it if the board is free).
     Send(Arc<JobEntry>),
     /// Start the first queued job (after the plate was cleared).
@@ -149,7 +149,7 @@ pub type Fallback = Option<Box<dollop::config::Config>>;
 pub struct Board {
     /// Number.
     pub id: usize,
-    orders: Mutex<mpsc::Sender<(Order, Reply)>>,
+    orders: Mutex<mpsc::Sender<(WorkerOrder, Reply)>>,
     /// The latest view.
     pub view: tokio::sync::watch::Receiver<View>,
     /// The tab that commands it (set by its last accepted order).
@@ -163,11 +163,11 @@ impl Board {
     /// take the order only after it), then stops the board.
     pub async fn abort(&self) -> Result<String, String> {
         self.cancel.store(true, Ordering::SeqCst);
-        self.order(Order::Abort).await
+        self.order(WorkerOrder::Abort).await
     }
 
     /// Hands an order to the worker and waits for its answer (in plain words).
-    pub async fn order(&self, o: Order) -> Result<String, String> {
+    pub async fn order(&self, o: WorkerOrder) -> Result<String, String> {
         let (tx, rx) = tokio::sync::oneshot::channel();
         lock(&self.orders)
             .send((o, tx))
@@ -300,7 +300,7 @@ struct Worker {
     /// The simulated board's plant is built from this instead of the loaded config (a
     /// machine that differs from its config; tests).
     plant_config: Option<dollop::config::Config>,
-    /// The simulated board's link delays each frame this long (tests; see `SimLink`).
+    /// The simulated board's link delays each frame this long (tests; see `PacedBoard`).
     frame_delay: Duration,
     /// When the last pause (or park) was ordered, for its latency.
     pause_asked: Option<Instant>,
@@ -311,6 +311,86 @@ struct Worker {
     start_when_free: bool,
     /// Where an ended print is recorded (none: not recorded; unit tests).
     history: Option<Arc<History>>,
+}
+
+/// Still on its way: a job runs (or is paused) on the board.
+fn on_its_way(k: &Snapshot) -> bool {
+    k.mode == Mode::Job
+        && !matches!(
+            k.run,
+            RunState::Done | RunState::Aborted | RunState::Faulted
+        )
+}
+
+/// The running (or just ended) job's part of the view from the board's snapshot `k`:
+/// command, progress, layer, its clock, time left and finish; `Some(outcome)` when the
+/// job has just ended.
+fn follow_job(cur: &mut Current, v: &mut View, k: &Snapshot, speed: f64) -> Option<&'static str> {
+    let done = k.run == RunState::Done;
+    let running = on_its_way(k);
+    let mut ended = None;
+    let now = Instant::now();
+    if done {
+        // A finished job has done every command (the board's count stops one
+        // short: it counts the command under way).
+        v.command = v.commands;
+    }
+    v.progress = if done {
+        1.0
+    } else {
+        (k.command as f64 / v.commands.max(1) as f64).min(1.0)
+    };
+    v.layer = cur
+        .layer_starts
+        .partition_point(|&c| c <= k.command)
+        .saturating_sub(1);
+    if running {
+        cur.clock.paused(k.run == RunState::Paused, now);
+    } else if !cur.clock.ended() {
+        cur.clock.end(now);
+        ended = Some(if done {
+            "finished"
+        } else if k.mode == Mode::Halted {
+            "halted"
+        } else {
+            "aborted"
+        });
+    }
+    v.elapsed_s = cur.clock.elapsed_s(now);
+    let f = &cur.entry.figures;
+    v.eta_s = if done {
+        Some(0.0)
+    } else if running {
+        clock::eta_s(
+            &f.command_t_s,
+            f.est_time_s,
+            k.command,
+            v.commands,
+            cur.clock.printing_s(now),
+            speed,
+        )
+    } else {
+        None
+    };
+    v.finish_unix_ms = v.eta_s.and_then(clock::unix_ms_in);
+    ended
+}
+
+/// The board's activity in words, from its mode and run state (`current`: a job is
+/// the board's, finished or not).
+fn activity(mode: Mode, run: RunState, current: bool) -> String {
+    match (mode, run) {
+        // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
+        (Mode::Job, RunState::Paused) => "paused".into(),
+        (Mode::Job, RunState::Pausing) => "pausing".into(),
+        (Mode::Job, _) => "printing".into(),
+        (Mode::Homing, _) => "homing".into(),
+        (Mode::Halted, _) => "halted".into(),
+        (Mode::ValveTest, _) => "valve test".into(),
+        (_, RunState::Done) if current => "finished: clear the plate, then Start next".into(),
+        (_, RunState::Aborted) if current => "aborted".into(),
+        (m, _) => format!("{m:?}").to_lowercase(),
+    }
 }
 
 fn mode_words(s: &Status) -> Option<String> {
@@ -419,11 +499,13 @@ impl Worker {
         self.view.activity = "connecting".into();
         let opened = match &self.path {
             None => {
-                let mut link = SimLink::new(self.speed);
+                let mut link = PacedBoard::new(self.speed);
                 link.frame_delay = self.frame_delay;
-                Ok((Link::Sim(Box::new(link)), mem_options()))
+                Ok((Connection::Simulated(Box::new(link)), mem_options()))
             }
-            Some(p) => SerialLink::open(Some(p)).map(|l| (Link::Serial(l), Options::default())),
+            Some(p) => {
+                SerialLink::open(Some(p)).map(|l| (Connection::Serial(l), Options::default()))
+            }
         };
         let cancel = self.cancel.clone();
         let r = opened.and_then(|(link, opts)| {
@@ -464,7 +546,7 @@ impl Worker {
         self.next_connect = Instant::now() + Duration::from_secs(1);
     }
 
-    fn run(mut self, rx: mpsc::Receiver<(Order, Reply)>) {
+    fn run(mut self, rx: mpsc::Receiver<(WorkerOrder, Reply)>) {
         loop {
             self.connect();
             match rx.recv_timeout(Duration::from_millis(100)) {
@@ -541,7 +623,8 @@ impl Worker {
         v.flow_model = k.q_mm3_s as f64;
         let plant = match self.client.as_ref().map(|c| c.transport()) {
             Some(Cancellable {
-                link: Link::Sim(s), ..
+                link: Connection::Simulated(s),
+                ..
             }) => s.plant_now(),
             _ => None,
         };
@@ -573,14 +656,7 @@ impl Worker {
             }
         }
         let printing = k.mode == Mode::Job;
-        let done = k.run == RunState::Done;
-        // Still on its way: the job runs (or is paused) on the board.
-        let running = printing
-            && !matches!(
-                k.run,
-                RunState::Done | RunState::Aborted | RunState::Faulted
-            );
-        if !running && !matches!(k.mode, Mode::Homing | Mode::Jogging) {
+        if !on_its_way(k) && !matches!(k.mode, Mode::Homing | Mode::Jogging) {
             // Nothing moves the head and no print meters paste: a stopped executor's
             // last speed and flow are not the board now.
             v.speed = 0.0;
@@ -591,67 +667,11 @@ impl Worker {
                 }
             }
         }
-        let mut ended = None;
-        if let Some(cur) = self.current.as_mut() {
-            let now = Instant::now();
-            if done {
-                // A finished job has done every command (the board's count stops one
-                // short: it counts the command under way).
-                v.command = v.commands;
-            }
-            v.progress = if done {
-                1.0
-            } else {
-                (k.command as f64 / v.commands.max(1) as f64).min(1.0)
-            };
-            v.layer = cur
-                .layer_starts
-                .partition_point(|&c| c <= k.command)
-                .saturating_sub(1);
-            if running {
-                cur.clock.paused(k.run == RunState::Paused, now);
-            } else if !cur.clock.ended() {
-                cur.clock.end(now);
-                ended = Some(if done {
-                    "finished"
-                } else if k.mode == Mode::Halted {
-                    "halted"
-                } else {
-                    "aborted"
-                });
-            }
-            v.elapsed_s = cur.clock.elapsed_s(now);
-            let f = &cur.entry.figures;
-            v.eta_s = if done {
-                Some(0.0)
-            } else if running {
-                clock::eta_s(
-                    &f.command_t_s,
-                    f.est_time_s,
-                    k.command,
-                    v.commands,
-                    cur.clock.printing_s(now),
-                    self.speed,
-                )
-            } else {
-                None
-            };
-            v.finish_unix_ms = v.eta_s.and_then(clock::unix_ms_in);
-        }
-        v.activity = match (k.mode, k.run) {
-            // Short words: scripts (scripts/emulator/serve.py) wait for "paused".
-            (Mode::Job, RunState::Paused) => "paused".into(),
-            (Mode::Job, RunState::Pausing) => "pausing".into(),
-            (Mode::Job, _) => "printing".into(),
-            (Mode::Homing, _) => "homing".into(),
-            (Mode::Halted, _) => "halted".into(),
-            (Mode::ValveTest, _) => "valve test".into(),
-            (_, RunState::Done) if self.current.is_some() => {
-                "finished: clear the plate, then Start next".into()
-            }
-            (_, RunState::Aborted) if self.current.is_some() => "aborted".into(),
-            (m, _) => format!("{m:?}").to_lowercase(),
+        let ended = match self.current.as_mut() {
+            Some(cur) => follow_job(cur, v, k, self.speed),
+            None => None,
         };
+        v.activity = activity(k.mode, k.run, self.current.is_some());
         if !printing && self.current.as_ref().is_some_and(|c| c.aborted) && k.mode == Mode::Idle {
             v.activity = "aborted".into();
         }
@@ -674,19 +694,22 @@ impl Worker {
         }
     }
 
-    fn handle(&mut self, o: Order) -> Result<String, String> {
+    fn handle(&mut self, o: WorkerOrder) -> Result<String, String> {
         match &o {
-            Order::StartNext => self.check("start-next")?,
-            Order::Pause => self.check("pause")?,
-            Order::Park => self.check("park")?,
-            Order::Resume => self.check("resume")?,
-            Order::Home(_) => self.check("home")?,
-            Order::Valve(..) => self.check("valve")?,
+            WorkerOrder::StartNext => self.check("start-next")?,
+            WorkerOrder::Pause => self.check("pause")?,
+            WorkerOrder::Park => self.check("park")?,
+            WorkerOrder::Resume => self.check("resume")?,
+            WorkerOrder::Home(_) => self.check("home")?,
+            WorkerOrder::Valve(..) => self.check("valve")?,
             // A jog's distance is checked first (its error says more than "not homed").
-            Order::Jog(..) | Order::Send(_) | Order::Unqueue(_) | Order::Abort => {}
+            WorkerOrder::Jog(..)
+            | WorkerOrder::Send(_)
+            | WorkerOrder::Unqueue(_)
+            | WorkerOrder::Abort => {}
         }
         match o {
-            Order::Send(e) => {
+            WorkerOrder::Send(e) => {
                 let name = e.figures.name.clone();
                 self.queue.push(e);
                 let busy =
@@ -708,8 +731,8 @@ impl Worker {
                 }
                 self.start_next()
             }
-            Order::StartNext => self.start_next(),
-            Order::Unqueue(id) => {
+            WorkerOrder::StartNext => self.start_next(),
+            WorkerOrder::Unqueue(id) => {
                 // One entry: the same job queued twice is two prints, and a remove click
                 // takes back one of them (the copies are alike: the last goes).
                 let Some(at) = self.queue.iter().rposition(|e| e.id == id) else {
@@ -718,7 +741,7 @@ impl Worker {
                 self.queue.remove(at);
                 Ok("removed from the queue".into())
             }
-            Order::Park => {
+            WorkerOrder::Park => {
                 self.client()?
                     .command(&Request::Park)
                     .map_err(|e| e.to_string())?;
@@ -726,7 +749,7 @@ impl Worker {
                 self.view.pause_latency_ms = None;
                 Ok("parking: the head stops at the pause point, lifts and moves to the park position; Resume brings it back".into())
             }
-            Order::Pause => {
+            WorkerOrder::Pause => {
                 self.client()?
                     .command(&Request::Pause)
                     .map_err(|e| e.to_string())?;
@@ -734,14 +757,14 @@ impl Worker {
                 self.view.pause_latency_ms = None;
                 Ok("pausing: the valves shut where the bead's tail lands, and the head stops there".into())
             }
-            Order::Resume => {
+            WorkerOrder::Resume => {
                 self.client()?
                     .command(&Request::Resume)
                     .map_err(|e| e.to_string())?;
                 self.pause_asked = None;
                 Ok("resumed".into())
             }
-            Order::Abort => {
+            WorkerOrder::Abort => {
                 self.start_when_free = false;
                 self.cancel.store(false, Ordering::SeqCst);
                 let c = self.client()?;
@@ -756,21 +779,21 @@ impl Worker {
                 let done = ops::clear_if_halted(c).map_err(|e| e.to_string())?;
                 Ok(done.to_string())
             }
-            Order::Home(fallback) => {
+            WorkerOrder::Home(fallback) => {
                 self.ensure_config(fallback)?;
                 self.client()?
                     .command(&Request::Home)
                     .map_err(|e| e.to_string())?;
                 Ok("homing".into())
             }
-            Order::Jog(axis, mm, fallback) => {
+            WorkerOrder::Jog(axis, mm, fallback) => {
                 let um = ops::jog_um(mm).map_err(|e| e.to_string())?;
                 self.check("jog")?;
                 self.ensure_config(fallback)?;
                 ops::jog(self.client()?, axis, um).map_err(|e| e.to_string())?;
                 Ok(format!("jogging {axis:?} by {mm} mm"))
             }
-            Order::Valve(inlet, secs, fallback) => {
+            WorkerOrder::Valve(inlet, secs, fallback) => {
                 if !(secs.is_finite() && secs > 0.0 && secs <= 10.0) {
                     return Err("a valve test lasts between 0 and 10 s".into());
                 }
@@ -814,7 +837,9 @@ impl Worker {
     /// machine (or of `plant_config`) takes the board's valve outputs from now on.
     fn couple_plant(&mut self, cfg: &dollop::config::Config, material: u8) -> Result<(), String> {
         let plant_cfg = self.plant_config.clone().unwrap_or_else(|| cfg.clone());
-        if let Some(Link::Sim(s)) = self.client.as_mut().map(|c| &mut c.transport_mut().link) {
+        if let Some(Connection::Simulated(s)) =
+            self.client.as_mut().map(|c| &mut c.transport_mut().link)
+        {
             s.set_plant(&plant_cfg, material)?;
         }
         Ok(())
@@ -1029,7 +1054,9 @@ mod tests {
     #[test]
     fn a_board_gone_mid_upload_keeps_the_job_queued() {
         let mut w = worker(50.0);
-        if let Some(Link::Sim(s)) = w.client.as_mut().map(|c| &mut c.transport_mut().link) {
+        if let Some(Connection::Simulated(s)) =
+            w.client.as_mut().map(|c| &mut c.transport_mut().link)
+        {
             let m = s.mem();
             m.dead_after = Some(m.stats.host_frames + 12);
         }
@@ -1054,22 +1081,22 @@ mod tests {
         w.tick();
         let job = chessboard();
         // Nothing to pause or resume on an idle board: refused, not a success.
-        for o in [Order::Pause, Order::Resume, Order::Park] {
+        for o in [WorkerOrder::Pause, WorkerOrder::Resume, WorkerOrder::Park] {
             let e = w.handle(o).expect_err("refused on an idle board");
             assert!(e.contains("no print is running"), "{e}");
         }
         assert_eq!(
-            w.handle(Order::Jog(Axis::X, f64::NAN, None))
+            w.handle(WorkerOrder::Jog(Axis::X, f64::NAN, None))
                 .err()
                 .as_deref(),
             Some("jog distance NaN mm is not a plausible move")
         );
-        assert!(w.handle(Order::Valve(0, 60.0, None)).is_err());
+        assert!(w.handle(WorkerOrder::Valve(0, 60.0, None)).is_err());
         assert!(w
-            .handle(Order::Home(None))
+            .handle(WorkerOrder::Home(None))
             .err()
             .is_some_and(|e| e.contains("no machine config")));
-        w.handle(Order::Send(job)).expect("starts");
+        w.handle(WorkerOrder::Send(job)).expect("starts");
         assert!(w.queue.is_empty());
         let start = Instant::now();
         while w.view.progress < 1.0 {
@@ -1102,14 +1129,14 @@ mod tests {
     #[test]
     fn abort_stops_the_clock_the_eta_the_speed_and_the_flow() {
         let mut w = worker(20.0);
-        w.handle(Order::Send(chessboard())).expect("starts");
+        w.handle(WorkerOrder::Send(chessboard())).expect("starts");
         tick_until(&mut w, "printing", |v| {
             v.progress > 0.3 && v.run == Some(RunState::Printing) && v.speed > 0.0
         });
         let eta = w.view.eta_s.expect("an ETA while printing");
         let finish = w.view.finish_unix_ms.expect("a finishing time");
         assert!(eta > 0.0 && finish > 0.0, "{eta} {finish}");
-        w.handle(Order::Abort).expect("aborts");
+        w.handle(WorkerOrder::Abort).expect("aborts");
         tick_until(&mut w, "aborted", |v| v.mode == Some(Mode::Idle));
         w.tick();
         let elapsed = w.view.elapsed_s;
@@ -1128,10 +1155,11 @@ mod tests {
     fn a_job_sent_while_homing_starts_when_the_board_is_free() {
         let mut w = worker(20.0);
         let cfg = design::check(design::BUNDLED[0].1).expect("config").config;
-        w.handle(Order::Home(Some(Box::new(cfg)))).expect("homes");
+        w.handle(WorkerOrder::Home(Some(Box::new(cfg))))
+            .expect("homes");
         w.tick();
         assert_eq!(w.view.mode, Some(Mode::Homing));
-        let m = w.handle(Order::Send(chessboard())).expect("queued");
+        let m = w.handle(WorkerOrder::Send(chessboard())).expect("queued");
         assert!(m.contains("starts when the board is free"), "{m}");
         assert_eq!(w.queue.len(), 1);
         tick_until(&mut w, "the queued job", |v| v.mode == Some(Mode::Job));
@@ -1146,10 +1174,10 @@ mod tests {
         let mut w = worker(20.0);
         w.queue.push(chessboard());
         w.queue.push(chessboard());
-        w.handle(Order::Unqueue(7)).expect("removed");
+        w.handle(WorkerOrder::Unqueue(7)).expect("removed");
         assert_eq!(w.queue.len(), 1);
-        w.handle(Order::Unqueue(7)).expect("removed");
-        assert!(w.handle(Order::Unqueue(7)).is_err());
+        w.handle(WorkerOrder::Unqueue(7)).expect("removed");
+        assert!(w.handle(WorkerOrder::Unqueue(7)).is_err());
     }
 
     /// A refusal on the card goes after `MESSAGE_S` (it used to stay for good).
@@ -1170,7 +1198,7 @@ mod tests {
     #[test]
     fn park_shows_latency_and_pause_point_and_resume_prints_on() {
         let mut w = worker(50.0);
-        w.handle(Order::Send(chessboard())).expect("starts");
+        w.handle(WorkerOrder::Send(chessboard())).expect("starts");
         let start = Instant::now();
         let until = |w: &mut Worker, what: &str, done: &dyn Fn(&View) -> bool| {
             while !done(&w.view) {
@@ -1186,7 +1214,7 @@ mod tests {
         until(&mut w, "printing", &|v| {
             v.progress > 0.2 && v.run == Some(RunState::Printing)
         });
-        w.handle(Order::Park).expect("parks");
+        w.handle(WorkerOrder::Park).expect("parks");
         until(&mut w, "parked", &|v| {
             v.pause_point.is_some_and(|p| v.position[2] > p[2] + 4.9)
         });
@@ -1195,7 +1223,7 @@ mod tests {
         let (shut, rest) = (shut.expect("valves shut"), rest.expect("head at rest"));
         assert!(shut <= rest && rest < 5_000.0, "{shut} / {rest} ms");
         eprintln!("park from the card: valves shut {shut:.0} ms, head at rest {rest:.0} ms (polled, board time)");
-        w.handle(Order::Resume).expect("resumes");
+        w.handle(WorkerOrder::Resume).expect("resumes");
         until(&mut w, "resumed", &|v| v.progress >= 1.0);
         assert_eq!(w.view.pause_point, None);
     }
@@ -1206,7 +1234,7 @@ mod tests {
     fn printed_volumes(plant: Option<dollop::config::Config>) -> (f64, f64) {
         let mut w = worker(200.0);
         w.plant_config = plant;
-        w.handle(Order::Send(chessboard())).expect("starts");
+        w.handle(WorkerOrder::Send(chessboard())).expect("starts");
         let (mut shown, mut model) = (0.0, 0.0);
         let board_now = |w: &Worker| {
             w.client
@@ -1293,19 +1321,21 @@ mod tests {
             ))
         };
         // Jogging an unhomed machine is the board's to refuse, as with the CLI.
-        let jog = w.handle(Order::Jog(Axis::X, 5.0, cfg()));
+        let jog = w.handle(WorkerOrder::Jog(Axis::X, 5.0, cfg()));
         assert!(jog.is_err(), "{jog:?}");
-        w.handle(Order::Home(cfg())).expect("homes");
+        w.handle(WorkerOrder::Home(cfg())).expect("homes");
         w.tick();
         tick_until(&mut w, "homing", |v| v.homed && v.mode == Some(Mode::Idle));
         let x0 = w.view.position[0];
-        let jog = w.handle(Order::Jog(Axis::X, 5.0, None)).expect("jogs");
+        let jog = w
+            .handle(WorkerOrder::Jog(Axis::X, 5.0, None))
+            .expect("jogs");
         assert!(jog.contains("jogging"), "{jog}");
         w.tick();
         tick_until(&mut w, "the jog", |v| {
             v.mode == Some(Mode::Idle) && (v.position[0] - x0 - 5.0).abs() < 0.01
         });
-        w.handle(Order::Valve(1, 0.5, None)).expect("opens");
+        w.handle(WorkerOrder::Valve(1, 0.5, None)).expect("opens");
         w.tick();
         assert_eq!(w.view.valves, 2, "{:?}", w.view.mode);
         // The plant's line fills and its flow follows; then the valve closes by itself.
@@ -1330,7 +1360,7 @@ mod tests {
                 view.changed().await.expect("worker runs");
             }
             let b = board.clone();
-            let send = tokio::spawn(async move { b.order(Order::Send(chessboard())).await });
+            let send = tokio::spawn(async move { b.order(WorkerOrder::Send(chessboard())).await });
             // The board's own Homing mode, then the head moving and the count going on.
             // (Bounded: a page that never sees the mode would otherwise wait for ever.)
             let homing = tokio::time::timeout(Duration::from_secs(30), async {
@@ -1415,7 +1445,7 @@ mod tests {
                 view.changed().await.expect("worker runs");
             }
             let b = board.clone();
-            let send = tokio::spawn(async move { b.order(Order::Send(entry)).await });
+            let send = tokio::spawn(async move { b.order(WorkerOrder::Send(entry)).await });
             let seen = tokio::time::timeout(Duration::from_secs(120), async {
                 loop {
                     view.changed().await.expect("worker runs");

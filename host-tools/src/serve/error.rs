@@ -5,7 +5,7 @@
 //! outside reaches a panic: every failure becomes one of these.
 
 use crate::calibrate::error::{CalError, CalOption, OptionError};
-use crate::slicer::{SliceError, SliceOption};
+use crate::slicer::{Names, SliceError, SliceLimit, SliceOption};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
@@ -143,17 +143,6 @@ impl From<axum::extract::multipart::MultipartError> for ApiError {
     }
 }
 
-/// The slicing options' fields as the Design page labels them (the library's messages
-/// name the command line's flags for these).
-const SLICE_FIELDS: [(&str, &str, &str); 2] = [
-    (
-        "scale it (--width-mm/--height-mm) or move it (--origin)",
-        "scale it (Width, mm / Height, mm) or move it (Origin X,Y mm)",
-        "opt-width_mm",
-    ),
-    ("change --origin", "change Origin X,Y mm", "opt-origin"),
-];
-
 /// The page's name for a request's option: its field's label (`index.html`, `opt-...`).
 pub fn field_name(o: SliceOption) -> &'static str {
     match o {
@@ -167,33 +156,51 @@ pub fn field_name(o: SliceOption) -> &'static str {
         SliceOption::Prime => "Priming bead, mm",
         // The page writes no G-code.
         SliceOption::GcodePorts => "G-code ports",
+        SliceOption::Width => "Width, mm",
+        SliceOption::Height => "Height, mm",
+        SliceOption::Size => "Width, mm / Height, mm",
+        SliceOption::Threshold => "Threshold (0-255)",
+        SliceOption::Markers => "Markers",
+    }
+}
+
+/// The slicer's options by the Design page's labels; its limits (the page sets none) in
+/// the library's words.
+struct Fields;
+
+impl Names for Fields {
+    fn option(&self, o: SliceOption) -> &'static str {
+        field_name(o)
+    }
+    fn limit(&self, l: SliceLimit) -> &'static str {
+        l.words()
     }
 }
 
 impl From<SliceError> for ApiError {
     fn from(e: SliceError) -> Self {
-        match e {
+        let field = match &e {
             // `Label: value problem`: the label ends in a unit, so the colon comes first.
-            SliceError::BadOption(o) => ApiError::bad(match &o.value {
-                Some(v) => format!("{}: {v} {}", field_name(o.option), o.problem),
-                None => format!("{}: {}", field_name(o.option), o.problem),
-            }),
-            e @ (SliceError::TooLarge { .. } | SliceError::OutsideTravel { .. }) => {
-                let mut m = e.to_string();
-                let mut field = None;
-                for (flag, label, id) in SLICE_FIELDS {
-                    if m.contains(flag) {
-                        m = m.replace(flag, label);
-                        field = Some(id);
-                    }
-                }
-                let e = ApiError::bad(m);
-                match field {
-                    Some(f) => e.at(f),
-                    None => e,
-                }
+            SliceError::BadOption(o) => {
+                let design = o
+                    .design
+                    .as_ref()
+                    .map(|d| format!("{d}: "))
+                    .unwrap_or_default();
+                let label = field_name(o.option);
+                return ApiError::bad(match &o.value {
+                    Some(v) => format!("{design}{label}: {v} {}", o.problem),
+                    None => format!("{design}{label}: {}", o.problem),
+                });
             }
-            e => ApiError::bad(e.to_string()),
+            SliceError::TooLarge { .. } => Some("opt-width_mm"),
+            SliceError::OutsideTravel { .. } => Some("opt-origin"),
+            _ => None,
+        };
+        let e = ApiError::bad(e.message(&Fields));
+        match field {
+            Some(f) => e.at(f),
+            None => e,
         }
     }
 }

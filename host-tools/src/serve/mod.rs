@@ -2,8 +2,8 @@
 //! (slicer, dollop-sim, the link client). This file parses the options, builds the shared
 //! state, binds the listener and runs axum on tokio; the pages are plain HTML/CSS/JS
 //! compiled into the binary (`assets`), the HTTP API is `routes`, the work behind it is
-//! `design` (configs, uploads, slicing), `simulate`, `calibrate` and `boards` (one worker thread per
-//! board, the simulated board among them through `simlink`).
+//! `design` (configs, uploads, slicing), `simulate_page`, `calibrate` and `boards` (one worker thread per
+//! board, the simulated board among them through `paced_board`).
 
 pub mod assets;
 pub mod auth;
@@ -21,11 +21,11 @@ pub mod jobs;
 pub mod lock;
 pub mod octoprint;
 pub mod octoprint_control;
+pub mod paced_board;
 pub mod reply;
 pub mod routes;
 pub mod samples;
-pub mod simlink;
-pub mod simulate;
+pub mod simulate_page;
 pub mod snapshot;
 pub mod state;
 pub mod store;

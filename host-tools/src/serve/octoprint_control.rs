@@ -9,7 +9,7 @@
 //! `print`, do not wait for the tab that commands the board on the dashboard. This file
 //! stops at turning requests into the boards' orders.
 
-use super::boards::{Board, Order};
+use super::boards::{Board, WorkerOrder};
 use super::design::SliceForm;
 use super::error::ApiError;
 use super::jobs::JobEntry;
@@ -49,7 +49,7 @@ fn parse<T: for<'de> Deserialize<'de>>(body: &[u8], what: &str) -> OpResult<T> {
 /// Queues `job` on `board` (it starts when the board is free); the console says so.
 pub async fn send(st: &AppState, board: &Board, job: Arc<JobEntry>, kept: &str) -> OpResult<()> {
     let name = board.view.borrow().name.clone();
-    match board.order(Order::Send(job)).await {
+    match board.order(WorkerOrder::Send(job)).await {
         Ok(m) => {
             st.console.info(&name, format!("send: {m}"));
             Ok(())
@@ -68,10 +68,10 @@ fn first_board(st: &AppState) -> OpResult<Arc<Board>> {
 }
 
 /// Carries out one order on `board`, saying what happened on the console under `what`.
-async fn carry_out(st: &AppState, board: &Board, what: &str, order: Order) -> OpResult<()> {
+async fn carry_out(st: &AppState, board: &Board, what: &str, order: WorkerOrder) -> OpResult<()> {
     let name = board.view.borrow().name.clone();
     let done = match order {
-        Order::Abort => board.abort().await,
+        WorkerOrder::Abort => board.abort().await,
         o => board.order(o).await,
     };
     match done {
@@ -95,11 +95,11 @@ pub async fn job(State(st): St, body: Bytes) -> OpResult<StatusCode> {
     let board = first_board(&st)?;
     let (printing, paused) = job_flags(&board.view.borrow());
     let order = match (c.command.as_str(), c.action.as_deref()) {
-        ("cancel", _) => (Order::Abort, "cancel"),
-        ("pause", Some("pause")) => (Order::Pause, "pause"),
-        ("pause", Some("resume")) => (Order::Resume, "resume"),
-        ("pause", None | Some("toggle")) if paused => (Order::Resume, "resume"),
-        ("pause", None | Some("toggle")) => (Order::Pause, "pause"),
+        ("cancel", _) => (WorkerOrder::Abort, "cancel"),
+        ("pause", Some("pause")) => (WorkerOrder::Pause, "pause"),
+        ("pause", Some("resume")) => (WorkerOrder::Resume, "resume"),
+        ("pause", None | Some("toggle")) if paused => (WorkerOrder::Resume, "resume"),
+        ("pause", None | Some("toggle")) => (WorkerOrder::Pause, "pause"),
         ("pause", Some(other)) => {
             return Err(Plain(ApiError::bad(format!(
                 "pause's action {other:?}: send pause, resume or toggle"
@@ -110,7 +110,7 @@ pub async fn job(State(st): St, body: Bytes) -> OpResult<StatusCode> {
                 "a job is already running on the board: pause or cancel it first",
             )))
         }
-        ("start", _) => (Order::StartNext, "start"),
+        ("start", _) => (WorkerOrder::StartNext, "start"),
         ("restart", _) => {
             return Err(Plain(ApiError::conflict(
                 "a paused job cannot be restarted from its start: cancel it, clear the plate and print the file again",
@@ -210,7 +210,7 @@ fn read_line(text: &str, relative: bool) -> Result<Option<Line>, String> {
 }
 
 /// The orders a batch of monitor lines asks for, every line checked before any runs.
-fn read_lines(lines: &[String]) -> Result<Vec<Order>, String> {
+fn read_lines(lines: &[String]) -> Result<Vec<WorkerOrder>, String> {
     if lines.len() > MAX_LINES {
         return Err(format!(
             "{} lines in one request; at most {MAX_LINES} are taken",
@@ -221,11 +221,11 @@ fn read_lines(lines: &[String]) -> Result<Vec<Order>, String> {
     for l in lines {
         match read_line(l, relative)? {
             Some(Line::Relative(r)) => relative = r,
-            Some(Line::Home) => orders.push(Order::Home(None)),
+            Some(Line::Home) => orders.push(WorkerOrder::Home(None)),
             Some(Line::Jog(d)) => {
                 for (axis, mm) in [Axis::X, Axis::Y, Axis::Z].into_iter().zip(d) {
                     if mm != 0.0 {
-                        orders.push(Order::Jog(axis, mm, None));
+                        orders.push(WorkerOrder::Jog(axis, mm, None));
                     }
                 }
             }
@@ -253,12 +253,12 @@ pub async fn printer_command(State(st): St, body: Bytes) -> OpResult<StatusCode>
     let fallback = || st.cli_config.clone().map(Box::new);
     for o in orders {
         match o {
-            Order::Home(_) => {
-                carry_out(&st, &board, "home", Order::Home(fallback())).await?;
+            WorkerOrder::Home(_) => {
+                carry_out(&st, &board, "home", WorkerOrder::Home(fallback())).await?;
                 homed(&board).await?;
             }
-            Order::Jog(a, mm, _) => {
-                carry_out(&st, &board, "jog", Order::Jog(a, mm, fallback())).await?
+            WorkerOrder::Jog(a, mm, _) => {
+                carry_out(&st, &board, "jog", WorkerOrder::Jog(a, mm, fallback())).await?
             }
             other => carry_out(&st, &board, "order", other).await?,
         }
@@ -308,15 +308,15 @@ async fn homed(board: &Board) -> OpResult<()> {
 mod tests {
     use super::*;
 
-    fn lines(l: &[&str]) -> Result<Vec<Order>, String> {
+    fn lines(l: &[&str]) -> Result<Vec<WorkerOrder>, String> {
         read_lines(&l.iter().map(|s| s.to_string()).collect::<Vec<_>>())
     }
 
-    fn shape(o: &[Order]) -> Vec<String> {
+    fn shape(o: &[WorkerOrder]) -> Vec<String> {
         o.iter()
             .map(|o| match o {
-                Order::Jog(a, mm, _) => format!("jog {a:?} {mm}"),
-                Order::Home(_) => "home".into(),
+                WorkerOrder::Jog(a, mm, _) => format!("jog {a:?} {mm}"),
+                WorkerOrder::Home(_) => "home".into(),
                 _ => "other".into(),
             })
             .collect()

@@ -50,12 +50,7 @@ pub fn job_value(e: &JobEntry) -> serde_json::Value {
         id: e.id,
         figures: &e.figures,
         toolpath: &e.toolpath,
-        materials: e
-            .config
-            .inlets
-            .iter()
-            .map(|i| i.material.to_string())
-            .collect(),
+        materials: crate::slicer::material_names(&e.config),
     })
     .unwrap_or_default()
 }

@@ -1,15 +1,15 @@
 //! The dashboard's HTTP API and pages: the router, and thin handlers that parse the
-//! request, hand the work to `design`, `simulate`, `calibrate` or a board's worker
+//! request, hand the work to `design`, `simulate_page`, `calibrate` or a board's worker
 //! (blocking work off the async threads), and answer JSON, files, or server-sent events
 //! (simulation progress, board status ten times a second). Every failure is an `ApiError`
 //! the page shows.
 
 use super::assets;
-use super::boards::{Fallback, Order, View};
+use super::boards::{Fallback, View, WorkerOrder};
 use super::design::{self, Field, SliceForm, Upload};
 use super::error::{ApiError, ApiResult};
 use super::reply::{blocking, download, job_json, job_value, mime, stem};
-use super::simulate::{self, SimRun};
+use super::simulate_page::{self, SimRun};
 use super::state::{lock, AppState, JobEntry};
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::header;
@@ -237,12 +237,7 @@ async fn job_file(State(st): St, Path((id, file)): Path<(u64, String)>) -> ApiRe
         }
         "job.gcode" => {
             let text = blocking(move || {
-                let names: Vec<String> = e
-                    .config
-                    .inlets
-                    .iter()
-                    .map(|i| i.material.to_string())
-                    .collect();
+                let names = crate::slicer::material_names(&e.config);
                 crate::slicer::gcode_exec::export(
                     &e.config,
                     &e.sliced.commands,
@@ -274,9 +269,9 @@ async fn sim_start(State(st): St, Path(id): Path<u64>) -> ApiResult<Json<serde_j
         .name(format!("sim-{sim}"))
         .spawn(move || {
             // A panic in the run must not leave the page waiting for ever.
-            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate::simulate(&run, &e.config, &job)));
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate_page::simulate(&run, &e.config, &job)));
             if r.is_err() {
-                *lock(&run.state) = simulate::SimState::Failed("the simulation stopped on an internal error (a bug: please report it with the design and config)".into());
+                *lock(&run.state) = simulate_page::SimState::Failed("the simulation stopped on an internal error (a bug: please report it with the design and config)".into());
             }
         })
         .map_err(|e| ApiError::internal(format!("cannot start the simulation: {e}")))?;
@@ -289,7 +284,7 @@ fn sim_of(st: &AppState, id: u64) -> ApiResult<Arc<SimRun>> {
     })
 }
 
-fn outcome(run: &SimRun) -> ApiResult<Arc<simulate::Outcome>> {
+fn outcome(run: &SimRun) -> ApiResult<Arc<simulate_page::Outcome>> {
     match run.outcome() {
         Ok(Some(o)) => Ok(o),
         Ok(None) => Err(ApiError::conflict("the simulation is still running")),
@@ -472,13 +467,13 @@ async fn board_action(
         }
         "send" => {
             let id = r.job.ok_or_else(|| ApiError::bad("slice a job first"))?;
-            Order::Send(job_of(&st, id)?)
+            WorkerOrder::Send(job_of(&st, id)?)
         }
-        "start-next" => Order::StartNext,
-        "unqueue" => Order::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
-        "pause" => Order::Pause,
-        "park" => Order::Park,
-        "resume" => Order::Resume,
+        "start-next" => WorkerOrder::StartNext,
+        "unqueue" => WorkerOrder::Unqueue(r.job.ok_or_else(|| ApiError::bad("which job?"))?),
+        "pause" => WorkerOrder::Pause,
+        "park" => WorkerOrder::Park,
+        "resume" => WorkerOrder::Resume,
         "abort" => {
             let name = b.view.borrow().name.clone();
             return match b.abort().await {
@@ -492,7 +487,7 @@ async fn board_action(
                 }
             };
         }
-        "home" => Order::Home(fallback()?),
+        "home" => WorkerOrder::Home(fallback()?),
         "jog" => {
             let axis = match r.axis.as_deref() {
                 Some("x") | Some("X") => dollop::Axis::X,
@@ -500,13 +495,13 @@ async fn board_action(
                 Some("z") | Some("Z") => dollop::Axis::Z,
                 _ => return Err(ApiError::bad("jog: choose the axis x, y or z")),
             };
-            Order::Jog(
+            WorkerOrder::Jog(
                 axis,
                 r.mm.ok_or_else(|| ApiError::bad("jog: give a distance in mm"))?,
                 fallback()?,
             )
         }
-        "valve" => Order::Valve(
+        "valve" => WorkerOrder::Valve(
             r.inlet
                 .ok_or_else(|| ApiError::bad("valve test: choose an inlet"))?,
             r.seconds.unwrap_or(1.0),

@@ -155,18 +155,14 @@ fn measure(job: &super::jobs::JobEntry, picture: &[u8]) -> ApiResult<Value> {
             s.name
         ))
     })?;
-    let names: Vec<String> = job
-        .config
-        .inlets
-        .iter()
-        .map(|i| i.material.to_string())
-        .collect();
-    let sim_job = dollop_sim::Job {
-        start_um: s.header.start_um,
-        initial_material: s.header.initial_material,
-        commands: s.commands.clone(),
-    };
-    let sug = suggest::suggest(&ins, &job.config, &sim_job);
+    let names = crate::slicer::material_names(&job.config);
+    let sug = suggest::for_job(
+        &ins,
+        &job.config,
+        s.header.start_um,
+        s.header.initial_material,
+        &s.commands,
+    );
     let img = inspect::picture::figure(&ins)
         .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
     let png = super::reply::png(&img)?;
@@ -175,7 +171,7 @@ fn measure(job: &super::jobs::JobEntry, picture: &[u8]) -> ApiResult<Value> {
         "report": ins.report(&names),
         "suggestions": sug.lines,
         "fragment": sug.fragment,
-        "no_correction_needed": sug.fragment.is_none() && !sug.fits.is_empty() && sug.rms_now <= suggest::DEADBAND_MM,
+        "no_correction_needed": sug.none_needed(),
         "picture": format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(&png)),
     }))
 }

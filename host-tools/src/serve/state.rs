@@ -6,7 +6,7 @@ use super::boards::{self, Board};
 use super::design::{self, Upload};
 pub use super::jobs::JobEntry;
 pub use super::lock::lock;
-use super::simulate::SimRun;
+use super::simulate_page::SimRun;
 use super::Args;
 use crate::slicer::Sliced;
 use anyhow::Context;

@@ -59,11 +59,7 @@ impl Heatmap {
             img: image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255])),
             radius: ((pitch * 0.5 * px_per_mm).round() as i64).max(1),
             last: None,
-            names: config
-                .inlets
-                .iter()
-                .map(|i| i.material.to_string())
-                .collect(),
+            names: crate::slicer::material_names(config),
             used: [false; PALETTE.len()],
         }
     }

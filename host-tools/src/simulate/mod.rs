@@ -2,7 +2,7 @@
 //! virtual time, metered by the reference plant (or the executor's own model), streaming
 //! a CSV trace and painting the plate heatmap (`heatmap`), and the report's text
 //! (`report`). No argument parsing and no flag names: `cmd::simulate` (the command line)
-//! and `serve::simulate` (the dashboard) are the front ends. The physics and the metrics
+//! and `serve::simulate_page` (the dashboard) are the front ends. The physics and the metrics
 //! are `dollop-sim`'s.
 
 pub mod heatmap;

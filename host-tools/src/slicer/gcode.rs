@@ -416,9 +416,10 @@ pub(super) fn check_materials(
         .max()
         .unwrap_or(0);
     if worst as usize >= inlets {
-        return Err(SliceError::Option(format!(
-            "the job uses material {worst} but the machine has {inlets} inlet(s)"
-        )));
+        return Err(SliceError::MaterialBeyondInlets {
+            material: worst,
+            inlets,
+        });
     }
     Ok(())
 }
@@ -547,22 +548,7 @@ pub fn export(
                         let _ = writeln!(w.out, "G4 P{wait_ms}");
                     }
                 }
-                // Cut at profile breakpoints and switches inside the segment.
-                let mut cuts: Vec<(f64, Option<u8>)> = Vec::new();
-                let mut k = pi;
-                while k < prof.len() && prof[k].0 < seg.s1 - 1e-9 {
-                    if prof[k].0 > seg.s0 + 1e-9 {
-                        cuts.push((prof[k].0, None));
-                    }
-                    k += 1;
-                }
-                let mut j = sw;
-                while j < head.switches.len() && head.switches[j].0 / s_area < seg.s1 - 1e-9 {
-                    cuts.push((head.switches[j].0 / s_area, Some(head.switches[j].1)));
-                    j += 1;
-                }
-                cuts.push((seg.s1, None));
-                cuts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let cuts = cuts(&prof[pi..], &head.switches[sw..], s_area, [seg.s0, seg.s1]);
                 let len = seg.s1 - seg.s0;
                 let mut s = seg.s0;
                 let z = w.pos[2];
@@ -610,6 +596,33 @@ pub fn export(
     w.out.push_str("M400\n; end of job\n");
     w.stats.bytes = w.out.len();
     Ok((w.out, w.stats))
+}
+
+/// Where a segment from `s0` to `s1` (path mm) is cut: at the profile breakpoints and the
+/// switches inside it (a switch with its material), then at its end, in path order.
+/// `prof` and `switches` start at the entries still ahead; switches are by volume, so
+/// they are divided by `s_area`.
+fn cuts(
+    prof: &[(f64, f64)],
+    switches: &[(f64, u8)],
+    s_area: f64,
+    [s0, s1]: [f64; 2],
+) -> Vec<(f64, Option<u8>)> {
+    let mut cuts: Vec<(f64, Option<u8>)> = prof
+        .iter()
+        .take_while(|p| p.0 < s1 - 1e-9)
+        .filter(|p| p.0 > s0 + 1e-9)
+        .map(|p| (p.0, None))
+        .collect();
+    cuts.extend(
+        switches
+            .iter()
+            .take_while(|w| w.0 / s_area < s1 - 1e-9)
+            .map(|w| (w.0 / s_area, Some(w.1))),
+    );
+    cuts.push((s1, None));
+    cuts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    cuts
 }
 
 /// The export's comments, units and closed valves, then the move to `start`: Z first,

@@ -254,11 +254,9 @@ pub fn sample_run(
             c.report.state,
         );
     })
-    .map_err(|e| SliceError::Option(format!("G-code: the executor's run failed: {e}")))?;
-    if let Some(f) = result.fault {
-        return Err(SliceError::Option(format!(
-            "G-code: the executor stopped the job with a fault ({f}); check the job against the config with `dollop simulate`"
-        )));
+    .map_err(|reason| SliceError::ExecutorRun { reason })?;
+    if let Some(fault) = result.fault {
+        return Err(SliceError::ExecutorFault { fault });
     }
     Ok(sampler.finish())
 }
@@ -317,12 +315,11 @@ pub fn min_bytes(commands: &[Command], max_move_mm: f64) -> u64 {
 }
 
 fn too_large(bytes: u64, limit: u64, what: &str) -> SliceError {
-    let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
-    SliceError::Option(format!(
-        "G-code: {what} {:.1} MiB, over the limit of {:.1} MiB (--gcode-max-mb); raise the limit if the disk and memory allow (the text is built in memory), slice a smaller or coarser design, or send the job file to a dollop board, which needs no G-code",
-        mb(bytes),
-        mb(limit)
-    ))
+    SliceError::GcodeTooLarge {
+        what: what.to_string(),
+        bytes,
+        limit,
+    }
 }
 
 /// Exports a job as G-code from the executor's run on `config` (see the module's doc).
@@ -531,9 +528,9 @@ mod tests {
         };
         // Below the lower bound: refused at once, the executor never runs.
         let mut calls = 0;
-        let e = run(least - 1, &mut calls).unwrap_err().to_string();
+        let e = run(least - 1, &mut calls).unwrap_err();
         assert!(
-            e.contains("would be at least") && e.contains("--gcode-max-mb"),
+            matches!(&e, SliceError::GcodeTooLarge { what, .. } if what.contains("would be at least")),
             "{e}"
         );
         assert_eq!(calls, 0);

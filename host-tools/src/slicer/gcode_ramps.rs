@@ -110,34 +110,9 @@ pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Ste
                 s += len;
             }
         }
-        // Ranges of the chain that run at a higher feed: (from s, to s, feed).
-        let mut faster: Vec<(f64, f64, f64)> = Vec::new();
-        for w in moves.windows(2) {
-            let (ia, _, sj, v1, la) = w[0];
-            let (ib, _, _, v2, lb) = w[1];
-            if la <= 0.0 || lb <= 0.0 || v1 <= 0.0 || v2 <= 0.0 {
-                continue;
-            }
-            let m = if v2 > v1 { ib } else { ia };
-            let Step::Move { to, .. } = chain[m] else {
-                continue;
-            };
-            let u = sub(to, at[k + m]).map(|c| c / norm(sub(to, at[k + m])));
-            let a = accel_along(u, accel);
-            let (lo, hi) = (v1.min(v2), v1.max(v2));
-            if (hi * hi - lo * lo) / (2.0 * a) < JUMP_MIN_MM {
-                continue;
-            }
-            let shift = centring_shift(lo, hi, a);
-            if v2 > v1 {
-                faster.push((sj - shift, sj, v2));
-            } else {
-                faster.push((sj, sj + shift, v1));
-            }
-        }
+        let faster = faster_ranges(chain, &at[k..], &moves, accel);
         // Ranges by their start; a move looks only at those that can reach it, so a
         // layer-long chain costs its length, not its square.
-        faster.sort_by(|x, y| x.0.total_cmp(&y.0));
         let mut first = 0usize;
         let mut mi = 0usize;
         let mut cuts: Vec<f64> = Vec::new();
@@ -197,6 +172,129 @@ pub fn centre_jumps(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Ste
     out
 }
 
+/// The stretches of a chain of print moves (`at`: each step's start point; `moves`: each
+/// move's index in the chain, start and end path length, feed and length) that run at a
+/// higher feed, centred on the jump between two moves' feeds: (from s, to s, feed),
+/// sorted by their start.
+fn faster_ranges(
+    chain: &[Step],
+    at: &[[f64; 3]],
+    moves: &[(usize, f64, f64, f64, f64)],
+    accel: [f64; 3],
+) -> Vec<(f64, f64, f64)> {
+    let mut faster: Vec<(f64, f64, f64)> = Vec::new();
+    for w in moves.windows(2) {
+        let (ia, _, sj, v1, la) = w[0];
+        let (ib, _, _, v2, lb) = w[1];
+        if la <= 0.0 || lb <= 0.0 || v1 <= 0.0 || v2 <= 0.0 {
+            continue;
+        }
+        let m = if v2 > v1 { ib } else { ia };
+        let Step::Move { to, .. } = chain[m] else {
+            continue;
+        };
+        let u = sub(to, at[m]).map(|c| c / norm(sub(to, at[m])));
+        let a = accel_along(u, accel);
+        let (lo, hi) = (v1.min(v2), v1.max(v2));
+        if (hi * hi - lo * lo) / (2.0 * a) < JUMP_MIN_MM {
+            continue;
+        }
+        let shift = centring_shift(lo, hi, a);
+        if v2 > v1 {
+            faster.push((sj - shift, sj, v2));
+        } else {
+            faster.push((sj, sj + shift, v1));
+        }
+    }
+    faster.sort_by(|x, y| x.0.total_cmp(&y.0));
+    faster
+}
+
+/// The block before print move `k` that a run-up of `t_ramp` s may take over: its
+/// valve changes and the dwells that fit in the time (leading dwells stay before it).
+/// Returns its first step and the dwell time it holds.
+fn block_before(steps: &[Step], k: usize, t_ramp: f64) -> (usize, f64) {
+    let mut first = k;
+    let mut stood = 0.0;
+    while first > 0 {
+        match steps[first - 1] {
+            Step::Valves(_) => first -= 1,
+            Step::Dwell(d) if stood + d <= t_ramp => {
+                stood += d;
+                first -= 1;
+            }
+            _ => break,
+        }
+    }
+    // Leading dwells stay before the run-up.
+    while first < k && matches!(steps[first], Step::Dwell(_)) {
+        if let Step::Dwell(d) = steps[first] {
+            stood -= d;
+        }
+        first += 1;
+    }
+    (first, stood)
+}
+
+/// The block after print move `k` that a run-out of `t_ramp` s may take over (as
+/// [`block_before`], trailing dwells left after it). Returns its last step and the
+/// dwell time it holds.
+fn block_after(steps: &[Step], k: usize, t_ramp: f64) -> (usize, f64) {
+    let mut last = k;
+    let mut stood = 0.0;
+    while last + 1 < steps.len() {
+        match steps[last + 1] {
+            Step::Valves(_) => last += 1,
+            Step::Dwell(d) if stood + d <= t_ramp => {
+                stood += d;
+                last += 1;
+            }
+            _ => break,
+        }
+    }
+    while last > k && matches!(steps[last], Step::Dwell(_)) {
+        if let Step::Dwell(d) = steps[last] {
+            stood -= d;
+        }
+        last -= 1;
+    }
+    (last, stood)
+}
+
+/// Writes a run-up to `bead_start` from `back` at feed `v` after `out`, taking its time
+/// `t` from the dwells just before (latest first); a travel that ends at the bead's start
+/// goes to the run-up's start instead.
+fn write_run_up(out: &mut Vec<Step>, back: [f64; 3], bead_start: [f64; 3], v: f64, t: f64) {
+    let mut need = t;
+    let mut i = out.len();
+    while need > 0.0 && i > 0 && matches!(out[i - 1], Step::Dwell(_)) {
+        if let Step::Dwell(d) = &mut out[i - 1] {
+            let take = d.min(need);
+            *d -= take;
+            need -= take;
+        }
+        i -= 1;
+    }
+    // A travel that ends at the bead's start (dwells after it aside) goes to the
+    // run-up's start directly.
+    let last_move = out.iter_mut().rev().find(|s| !matches!(s, Step::Dwell(_)));
+    match last_move {
+        Some(Step::Move {
+            to, travel: true, ..
+        }) if *to == bead_start => *to = back,
+        _ => out.push(Step::Move {
+            to: back,
+            v,
+            travel: true,
+        }),
+    }
+    out.push(Step::Move {
+        to: bead_start,
+        v,
+        travel: true,
+    });
+}
+
 /// Where the executor starts a bead at speed (a valve whose flow starts at once), a
 /// firmware needs `v^2 / 2a` to get to that speed: the head runs up to the bead's start
 /// from that far back along it, with the valve changes of the last `v / a` seconds before
@@ -241,25 +339,7 @@ pub fn run_ups(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Step> {
             Some(prev) => !is_print(prev) || rests_between(prev, k),
         };
         if from_rest {
-            let mut first = k;
-            let mut stood = 0.0;
-            while first > 0 {
-                match steps[first - 1] {
-                    Step::Valves(_) => first -= 1,
-                    Step::Dwell(d) if stood + d <= t_ramp => {
-                        stood += d;
-                        first -= 1;
-                    }
-                    _ => break,
-                }
-            }
-            // Leading dwells stay before the run-up.
-            while first < k && matches!(steps[first], Step::Dwell(_)) {
-                if let Step::Dwell(d) = steps[first] {
-                    stood -= d;
-                }
-                first += 1;
-            }
+            let (first, stood) = block_before(steps, k, t_ramp);
             let back = lerp(from, to, -dr / len);
             ups.push((first, k, back, v, (t_ramp - stood).max(0.0)));
         }
@@ -269,24 +349,7 @@ pub fn run_ups(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Step> {
             Some(nx) => !is_print(nx) || rests_between(k, nx),
         };
         if to_rest {
-            let mut last = k;
-            let mut stood = 0.0;
-            while last + 1 < n {
-                match steps[last + 1] {
-                    Step::Valves(_) => last += 1,
-                    Step::Dwell(d) if stood + d <= t_ramp => {
-                        stood += d;
-                        last += 1;
-                    }
-                    _ => break,
-                }
-            }
-            while last > k && matches!(steps[last], Step::Dwell(_)) {
-                if let Step::Dwell(d) = steps[last] {
-                    stood -= d;
-                }
-                last -= 1;
-            }
+            let (last, stood) = block_after(steps, k, t_ramp);
             let past = lerp(to, from, -dr / len);
             outs.push((k, last, past, v, (t_ramp - stood).max(0.0)));
         }
@@ -302,36 +365,7 @@ pub fn run_ups(steps: &[Step], start: [f64; 3], accel: [f64; 3]) -> Vec<Step> {
     for k in 0..n {
         if ui < ups.len() && ups[ui].0 == k {
             let (_, m, back, v, t) = ups[ui];
-            let bead_start = at[m];
-            // Take the time from the dwells just before, latest first.
-            let mut need = t;
-            let mut i = out.len();
-            while need > 0.0 && i > 0 && matches!(out[i - 1], Step::Dwell(_)) {
-                if let Step::Dwell(d) = &mut out[i - 1] {
-                    let take = d.min(need);
-                    *d -= take;
-                    need -= take;
-                }
-                i -= 1;
-            }
-            // A travel that ends at the bead's start (dwells after it aside) goes to the
-            // run-up's start directly.
-            let last_move = out.iter_mut().rev().find(|s| !matches!(s, Step::Dwell(_)));
-            match last_move {
-                Some(Step::Move {
-                    to, travel: true, ..
-                }) if *to == bead_start => *to = back,
-                _ => out.push(Step::Move {
-                    to: back,
-                    v,
-                    travel: true,
-                }),
-            }
-            out.push(Step::Move {
-                to: bead_start,
-                v,
-                travel: true,
-            });
+            write_run_up(&mut out, back, at[m], v, t);
             absorb_dwells_until = m;
             ui += 1;
         }

@@ -4,7 +4,7 @@
 //! the `Design`: placement and toolpaths are `toolpath`'s.
 
 use super::design::{Design, Layer, Run};
-use super::error::SliceError;
+use super::error::{MaterialsHint, OptionError, SliceError, SliceLimit, SliceOption};
 use image::{DynamicImage, RgbaImage};
 use std::path::Path;
 
@@ -121,7 +121,8 @@ pub fn load_limited(path: &Path, max_pixels: u64) -> Result<DynamicImage, SliceE
             &format!("{w} x {h} ="),
             pixels,
             max_pixels,
-            "--max-pixels",
+            SliceLimit::Pixels,
+            None,
         ));
     }
     let mut reader = open()?;
@@ -152,15 +153,17 @@ pub fn slice_image(
     min_run_mm: f64,
 ) -> Result<Design, SliceError> {
     if !(opts.background_tolerance.is_finite() && opts.background_tolerance >= 0.0) {
-        return Err(SliceError::Option(format!(
-            "--background-tolerance {} must be a distance of 0 or more",
-            opts.background_tolerance
+        return Err(SliceError::BadOption(OptionError::new(
+            SliceOption::BackgroundTolerance,
+            Some(opts.background_tolerance.to_string()),
+            "must be a distance of 0 or more".into(),
         )));
     }
     if !(pitch_mm.is_finite() && pitch_mm > 0.0) {
-        return Err(SliceError::Option(format!(
-            "{name}: line pitch {pitch_mm} mm must be above 0"
-        )));
+        return Err(SliceError::LinePitch {
+            what: name.to_string(),
+            pitch_mm,
+        });
     }
     let rgba = orient(img.to_rgba8(), opts);
     let (w, h) = (rgba.width() as usize, rgba.height() as usize);
@@ -179,9 +182,11 @@ pub fn slice_image(
     let cell = px_x.max(0.02).min(pitch_mm);
     let cols = ((w as f64 * px_x / cell).round() as usize).max(1);
     if rows.saturating_mul(cols) > 400_000_000 {
-        return Err(SliceError::Option(format!(
-            "{name}: {cols} x {rows} samples is too many; print it smaller or coarser"
-        )));
+        return Err(SliceError::TooManySamples {
+            what: name.to_string(),
+            cols,
+            rows,
+        });
     }
     let xs = axis_weights(cols, cell / px_x, w);
     let classifier = Classifier {
@@ -231,7 +236,7 @@ pub fn slice_image(
             what: name.to_string(),
             found,
             inlets,
-            hint: "; use --background for the unprinted colour, or a config with more inlets",
+            hint: MaterialsHint::Background,
         });
     }
     Ok(Design {
@@ -266,14 +271,19 @@ fn pixel_size(
     name: &str,
 ) -> Result<(f64, f64), SliceError> {
     for (v, what) in [
-        (opts.width_mm, "--width-mm"),
-        (opts.height_mm, "--height-mm"),
+        (opts.width_mm, SliceOption::Width),
+        (opts.height_mm, SliceOption::Height),
     ] {
         if let Some(v) = v {
             if !(v.is_finite() && v > 0.0 && v <= 1e4) {
-                return Err(SliceError::Option(format!(
-                    "{name}: {what} {v} must be above 0 and at most 10000"
-                )));
+                return Err(SliceError::BadOption(
+                    OptionError::new(
+                        what,
+                        Some(v.to_string()),
+                        "must be above 0 and at most 10000".into(),
+                    )
+                    .of(name),
+                ));
             }
         }
     }
@@ -389,13 +399,11 @@ fn palette(
     inlets: usize,
     name: &str,
 ) -> Result<Vec<[f32; 3]>, SliceError> {
-    let too_many = |found| {
-        SliceError::TooManyMaterials {
+    let too_many = |found| SliceError::TooManyMaterials {
         what: name.to_string(),
         found,
         inlets,
-        hint: "; give --palette with at most that many colours, --background for the unprinted one, or use --threshold",
-    }
+        hint: MaterialsHint::Palette,
     };
     match &opts.classify {
         Classify::Threshold(_) => Ok(Vec::new()),
@@ -404,9 +412,14 @@ fn palette(
                 return Err(too_many(p.len()));
             }
             if p.is_empty() {
-                return Err(SliceError::Option(format!(
-                    "{name}: --palette needs at least one colour"
-                )));
+                return Err(SliceError::BadOption(
+                    OptionError::new(
+                        SliceOption::Palette,
+                        None,
+                        "needs at least one colour".into(),
+                    )
+                    .of(name),
+                ));
             }
             Ok(p.iter().map(|&c| to_f(c)).collect())
         }

@@ -5,6 +5,7 @@
 //! is unchanged and `inspect` recognises them by their shape ([`recognise`]). Finding them
 //! in a photo is `inspect`'s business.
 
+pub use super::error::MarkerError;
 use super::toolpath::um;
 use dollop::command::{walk, MoveKind};
 use dollop::Command;
@@ -63,27 +64,6 @@ pub fn layout(lo: [f64; 2], hi: [f64; 2], pitch: f64) -> [Marker; 4] {
     })
 }
 
-/// Why markers cannot be added.
-#[derive(Clone, Debug, PartialEq)]
-pub enum MarkerError {
-    /// The job prints nothing, or more than one layer.
-    NotSingleLayer(&'static str),
-    /// A marker would lie outside the machine's travel.
-    OutOfTravel,
-}
-
-impl std::fmt::Display for MarkerError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            MarkerError::NotSingleLayer(why) => write!(f, "{why}"),
-            MarkerError::OutOfTravel => write!(
-                f,
-                "the corner markers would lie outside the machine's travel; place the design further from its edges (--origin)"
-            ),
-        }
-    }
-}
-
 /// `commands` (starting at `start_um`, ending with `End`) with the four markers printed
 /// right after the last bead, at its height and in its material, for beads `pitch`
 /// wide; each marker must lie within `travel` (lower-left and upper-right, mm).
@@ -113,16 +93,12 @@ pub fn add(
         }
     }
     let Some(material) = material else {
-        return Err(MarkerError::NotSingleLayer(
-            "the job prints nothing to put markers about",
-        ));
+        return Err(MarkerError::NothingPrinted);
     };
     zs.sort_unstable();
     zs.dedup();
     if zs.len() > 1 {
-        return Err(MarkerError::NotSingleLayer(
-            "corner markers are for single-layer jobs (a photo sees only the top layer); slice with --layers 1",
-        ));
+        return Err(MarkerError::Layers);
     }
     let half = pitch / 2.0;
     let markers = layout(
@@ -358,7 +334,7 @@ mod tests {
         );
         assert!(matches!(
             add(&two, [0, 0, 600], 0.8, ([-50.0; 2], [50.0; 2])),
-            Err(MarkerError::NotSingleLayer(_))
+            Err(MarkerError::Layers)
         ));
     }
 }

@@ -2,7 +2,7 @@
 //! refusing empty files and NaN/infinite vertices, and checking that a body is closed
 //! (every edge shared by exactly two triangles). Slicing meshes is `voxel`'s job.
 
-use super::error::SliceError;
+use super::error::{SliceError, SliceLimit};
 use super::image::one_line;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -153,11 +153,14 @@ pub fn read_stl_limited(path: &Path, left: u64, limit: u64) -> Result<Mesh, Slic
     for t in stl {
         let t = t.map_err(bad)?;
         if tris.len() as u64 >= left {
-            return Err(SliceError::Option(format!(
-                "{}: more than {limit} triangles (all bodies together) exceeds the limit \
-                 (--max-triangles raises it)",
-                path.display()
-            )));
+            return Err(SliceError::OverLimit {
+                what: format!(
+                    "{}: more than {limit} triangles (all bodies together) exceeds the limit",
+                    path.display()
+                ),
+                limit: SliceLimit::Triangles,
+                or: None,
+            });
         }
         tris.push([t.vertices[0].0, t.vertices[1].0, t.vertices[2].0]);
     }

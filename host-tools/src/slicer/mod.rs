@@ -26,7 +26,9 @@ pub mod threemf;
 pub mod toolpath;
 pub mod voxel;
 
-pub use error::{OptionError, SliceError, SliceOption};
+pub use error::{
+    MarkerError, MaterialsHint, Names, OptionError, SliceError, SliceLimit, SliceOption, Words,
+};
 pub use request::{GcodeRequest, GcodeStyle, SliceRequest};
 pub use toolpath::{PathOptions, PathStats};
 
@@ -80,12 +82,33 @@ impl Default for Limits {
     }
 }
 
-/// The refusal for `what` = `got` above the limit set by `flag`.
-pub fn over_limit(name: &str, what: &str, got: u64, limit: u64, flag: &str) -> SliceError {
-    SliceError::Option(format!(
-        "{name}: {what} {got} exceeds the limit of {limit} by {} ({flag} raises it)",
-        got.saturating_sub(limit)
-    ))
+/// The refusal for `what` = `got` over `limit`, the value of `which` (or within it by
+/// `or`).
+pub fn over_limit(
+    name: &str,
+    what: &str,
+    got: u64,
+    limit: u64,
+    which: SliceLimit,
+    or: Option<SliceOption>,
+) -> SliceError {
+    SliceError::OverLimit {
+        what: format!(
+            "{name}: {what} {got} exceeds the limit of {limit} by {}",
+            got.saturating_sub(limit)
+        ),
+        limit: which,
+        or,
+    }
+}
+
+/// Each inlet's material name, inlet 0 first (what reports, pictures and G-code call them).
+pub fn material_names(config: &Config) -> Vec<String> {
+    config
+        .inlets
+        .iter()
+        .map(|i| i.material.to_string())
+        .collect()
 }
 
 impl Default for SliceOptions {
@@ -151,7 +174,7 @@ pub fn with_markers(
         config.channel.line_pitch_mm as f64,
         travel,
     )
-    .map_err(|e| SliceError::Option(format!("--markers: {e}")))?;
+    .map_err(SliceError::Markers)?;
     let mut stats = sliced.stats;
     for c in &commands[sliced.commands.len() - 1..] {
         match *c {
@@ -253,7 +276,7 @@ pub fn load_design(
     opts: &SliceOptions,
 ) -> Result<design::Design, SliceError> {
     let Some(first) = paths.first() else {
-        return Err(SliceError::Option("no design file given".into()));
+        return Err(SliceError::NoDesign);
     };
     let inlets = machine.inlet_count();
     let pitch = config.channel.line_pitch_mm as f64;
@@ -269,11 +292,10 @@ pub fn load_design(
     match kinds[0] {
         DesignKind::Image => {
             if paths.len() > 1 {
-                return Err(SliceError::Option(format!(
-                    "{}: give one image (its colours are the materials); {} files given",
-                    first.display(),
-                    paths.len()
-                )));
+                return Err(SliceError::ImageNotAlone {
+                    path: first.clone(),
+                    count: paths.len(),
+                });
             }
             let img = image::load_limited(first, opts.limits.max_pixels)?;
             let name = first.display().to_string();
@@ -284,11 +306,10 @@ pub fn load_design(
         }
         DesignKind::ThreeMf => {
             if paths.len() > 1 {
-                return Err(SliceError::Option(format!(
-                    "{}: a 3MF holds every material's body; give it alone (got {} files)",
-                    first.display(),
-                    paths.len()
-                )));
+                return Err(SliceError::ThreeMfNotAlone {
+                    path: first.clone(),
+                    count: paths.len(),
+                });
             }
             let meshes = threemf::read_3mf_limited(first, &opts.limits)?;
             if meshes.len() > inlets {
@@ -296,7 +317,7 @@ pub fn load_design(
                     what: first.display().to_string(),
                     found: meshes.len(),
                     inlets,
-                    hint: " (materials of the 3MF's objects)",
+                    hint: MaterialsHint::ThreeMfObjects,
                 });
             }
             slice_meshes(&meshes, config, opts, pitch)
@@ -307,18 +328,14 @@ pub fn load_design(
                 .zip(&kinds)
                 .find(|(_, k)| **k != DesignKind::Stl)
             {
-                return Err(SliceError::Option(format!(
-                    "{}: cannot mix with STL bodies (give one STL per material, one image, \
-                     or one 3MF)",
-                    p.0.display()
-                )));
+                return Err(SliceError::MixedWithStl { path: p.0.clone() });
             }
             if paths.len() > inlets {
                 return Err(SliceError::TooManyMaterials {
                     what: first.display().to_string(),
                     found: paths.len(),
                     inlets,
-                    hint: " (one STL per material, in inlet order)",
+                    hint: MaterialsHint::StlPerMaterial,
                 });
             }
             let mut left = opts.limits.max_triangles;
@@ -349,7 +366,8 @@ fn stack_layers(
             &format!("{layers} layers x {per} runs ="),
             total,
             limits.max_segments,
-            "--max-segments",
+            SliceLimit::Segments,
+            None,
         ));
     }
     if let Some(l) = d.layers.first().cloned() {

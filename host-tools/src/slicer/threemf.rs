@@ -5,7 +5,7 @@
 //! materials, the item itself in build order. Checking and voxelizing the
 //! bodies is `mesh`'s and `voxel`'s job.
 
-use super::error::SliceError;
+use super::error::{SliceError, SliceLimit};
 use super::image::one_line;
 use super::mesh::Mesh;
 use std::collections::BTreeMap;
@@ -172,11 +172,15 @@ fn check_xml_size(path: &Path, max: u64) -> Result<(), SliceError> {
             .map_err(|e| bad(path, one_line(&e.to_string())))?;
         total += n;
         if total > max {
-            return Err(SliceError::Option(format!(
-                "{}: its model XML is more than the limit of {} MiB (--max-3mf-mb raises it)",
-                path.display(),
-                max >> 20
-            )));
+            return Err(SliceError::OverLimit {
+                what: format!(
+                    "{}: its model XML is more than the limit of {} MiB",
+                    path.display(),
+                    max >> 20
+                ),
+                limit: SliceLimit::ThreeMfSize,
+                or: None,
+            });
         }
     }
     Ok(())
@@ -253,7 +257,8 @@ pub fn read_3mf_limited(path: &Path, limits: &super::Limits) -> Result<Vec<Mesh>
             "triangles after expanding components:",
             total,
             limits.max_triangles,
-            "--max-triangles",
+            SliceLimit::Triangles,
+            None,
         ));
     }
     // Key: (material index, or build order for files without materials) -> triangles.

@@ -5,7 +5,7 @@
 //! firmware keys valves to volume, so no advance is applied here. Encoding is `job_file`'s.
 
 use super::design::{Design, Layer, Run, TOUCH_MM};
-use super::error::SliceError;
+use super::error::{OptionError, SliceError, SliceOption};
 use dollop::config::Config;
 use dollop::{Command, Machine};
 
@@ -182,8 +182,10 @@ fn place(
     let prime = match opts.prime_mm {
         Some(p) if p.is_finite() && p >= 2.0 * transit => p,
         Some(p) => {
-            return Err(SliceError::Option(format!(
-                "--prime-mm {p} is shorter than twice the {transit:.2} mm of bead between the valves and the plate"
+            return Err(SliceError::BadOption(OptionError::new(
+                SliceOption::Prime,
+                Some(p.to_string()),
+                format!("is shorter than twice the {transit:.2} mm of bead between the valves and the plate"),
             )))
         }
         None => (2.5 * transit).ceil().max(5.0),

@@ -11,7 +11,7 @@
 //! surface touching without overlapping. Overlaps between bodies are refused.
 
 use super::design::{Design, Layer, Run, TOUCH_MM};
-use super::error::SliceError;
+use super::error::{SliceError, SliceLimit, SliceOption};
 use super::mesh::Mesh;
 use super::output::progress;
 
@@ -68,9 +68,7 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     }
     let (pitch, h) = (opts.pitch_mm, opts.layer_mm);
     if !(pitch > 0.0 && h > 0.0) {
-        return Err(SliceError::Option(
-            "pitch and layer height must be above zero".into(),
-        ));
+        return Err(SliceError::NoSpacing);
     }
     let mut layers_n = (((hi[2] - lo[2]) / h).round() as usize).max(1);
     if let Some(n) = opts.max_layers {
@@ -78,9 +76,11 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     }
     let rows = (((hi[1] - lo[1]) / pitch).round() as usize).max(1);
     if rows.saturating_mul(layers_n) > 50_000_000 {
-        return Err(SliceError::Option(format!(
-            "{name}: {rows} rows x {layers_n} layers is too many; check the model's units"
-        )));
+        return Err(SliceError::TooManyRows {
+            what: name.to_string(),
+            rows,
+            layers: layers_n,
+        });
     }
     let z_of = |k: usize| lo[2] + (k as f64 + 0.5) * h;
     let y_of = |r: usize| lo[1] + (r as f64 + 0.5) * pitch;
@@ -101,78 +101,15 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
     let mut total_runs = 0u64;
     for k in 0..layers_n {
         let z = z_of(k);
-        for (b, body) in bodies.iter().enumerate() {
-            let cx = &mut crossings[b];
-            cx.clear();
-            let ts = &body.tris[body.start[k] as usize..body.start[k + 1] as usize];
-            for &t in ts {
-                let tri = tri_f64(body.mesh, t);
-                let sign = winding_sign(&tri);
-                if sign == 0 {
-                    continue;
-                }
-                if let Some((p, q)) = section(&tri, z) {
-                    cross_rows(p, q, lo[1], pitch, rows, sign, cx);
-                }
-            }
-            // Entries before exits at the same x, so touching shells join.
-            cx.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(b.2.cmp(&a.2)));
+        for (body, cx) in bodies.iter().zip(crossings.iter_mut()) {
+            layer_crossings(body, k, z, (lo[1], pitch, rows), cx);
         }
         let mut layer = Layer::new();
         let mut next = vec![0usize; meshes.len()];
         for r in 0..rows {
-            intervals.clear();
-            for (b, cx) in crossings.iter().enumerate() {
-                let i0 = next[b];
-                let mut i1 = i0;
-                while i1 < cx.len() && cx[i1].0 == r as u32 {
-                    i1 += 1;
-                }
-                next[b] = i1;
-                let xs = &cx[i0..i1];
-                // Inside wherever the winding number is not zero.
-                let mut w = 0i32;
-                let mut start = 0.0;
-                for &(_, x, sign) in xs {
-                    let before = w;
-                    w += sign as i32;
-                    if before == 0 && w != 0 {
-                        start = x;
-                    } else if before != 0 && w == 0 && x - start > TOUCH_MM {
-                        intervals.push((start, x, b as u8));
-                    }
-                }
-                if w != 0 {
-                    // A closed, consistently oriented body always winds back to zero.
-                    return Err(SliceError::NonManifold {
-                        path: meshes[b].path.clone(),
-                        edges: 1,
-                        at: [xs[0].1, y_of(r), z],
-                    });
-                }
-            }
-            intervals.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-            row_runs.clear();
-            let mut reach: Option<(f64, u8)> = None;
-            for &(x0, x1, m) in intervals.iter() {
-                if let Some((end, om)) = reach {
-                    if x0 < end - TOUCH_MM && om != m {
-                        return Err(SliceError::Overlap {
-                            a: meshes[om as usize].path.clone(),
-                            b: meshes[m as usize].path.clone(),
-                            at: [(x0 + end.min(x1)) / 2.0, y_of(r), z],
-                        });
-                    }
-                }
-                if reach.is_none_or(|(end, _)| x1 > end) {
-                    reach = Some((x1, m));
-                }
-                row_runs.push(Run {
-                    x0: x0 - lo[0],
-                    x1: x1 - lo[0],
-                    material: m,
-                });
-            }
+            let at = [y_of(r), z];
+            row_intervals(meshes, &crossings, &mut next, r, at, &mut intervals)?;
+            row_runs_of(meshes, &mut intervals, lo[0], at, &mut row_runs)?;
             layer.push_row(&mut row_runs, opts.min_run_mm);
         }
         total_runs += layer.runs().len() as u64;
@@ -182,7 +119,8 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
                 &format!("runs in the first {} of {layers_n} layers:", k + 1),
                 total_runs,
                 opts.max_segments,
-                "--max-segments (or --layers)",
+                SliceLimit::Segments,
+                Some(SliceOption::Layers),
             ));
         }
         out_layers.push(layer);
@@ -207,6 +145,108 @@ pub fn slice_meshes(meshes: &[Mesh], opts: &MeshOptions) -> Result<Design, Slice
         });
     }
     Ok(design)
+}
+
+/// A body's crossings of layer `k` (mid-plane `z`) with the rows (`(y0, pitch, rows)`),
+/// by row, then x, entries before exits at the same x (so touching shells join).
+fn layer_crossings(
+    body: &Body,
+    k: usize,
+    z: f64,
+    (y0, pitch, rows): (f64, f64, usize),
+    cx: &mut Vec<(u32, f64, i8)>,
+) {
+    cx.clear();
+    let ts = &body.tris[body.start[k] as usize..body.start[k + 1] as usize];
+    for &t in ts {
+        let tri = tri_f64(body.mesh, t);
+        let sign = winding_sign(&tri);
+        if sign == 0 {
+            continue;
+        }
+        if let Some((p, q)) = section(&tri, z) {
+            cross_rows(p, q, y0, pitch, rows, sign, cx);
+        }
+    }
+    cx.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(b.2.cmp(&a.2)));
+}
+
+/// Row `r`'s inside intervals `(x0, x1, body)` of every body into `intervals`, from each
+/// body's crossings starting at `next[body]` (moved past row `r`'s); `at` = the row's
+/// (y, z) for the error. A body whose winding does not return to zero is not closed.
+fn row_intervals(
+    meshes: &[Mesh],
+    crossings: &[Vec<(u32, f64, i8)>],
+    next: &mut [usize],
+    r: usize,
+    [y, z]: [f64; 2],
+    intervals: &mut Vec<(f64, f64, u8)>,
+) -> Result<(), SliceError> {
+    intervals.clear();
+    for (b, cx) in crossings.iter().enumerate() {
+        let i0 = next[b];
+        let mut i1 = i0;
+        while i1 < cx.len() && cx[i1].0 == r as u32 {
+            i1 += 1;
+        }
+        next[b] = i1;
+        let xs = &cx[i0..i1];
+        // Inside wherever the winding number is not zero.
+        let mut w = 0i32;
+        let mut start = 0.0;
+        for &(_, x, sign) in xs {
+            let before = w;
+            w += sign as i32;
+            if before == 0 && w != 0 {
+                start = x;
+            } else if before != 0 && w == 0 && x - start > TOUCH_MM {
+                intervals.push((start, x, b as u8));
+            }
+        }
+        if w != 0 {
+            // A closed, consistently oriented body always winds back to zero.
+            return Err(SliceError::NonManifold {
+                path: meshes[b].path.clone(),
+                edges: 1,
+                at: [xs[0].1, y, z],
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A row's runs from its intervals (sorted here), x from `x0`; two bodies' intervals that
+/// overlap by more than a touch are refused (`at` = the row's (y, z)).
+fn row_runs_of(
+    meshes: &[Mesh],
+    intervals: &mut [(f64, f64, u8)],
+    x0: f64,
+    [y, z]: [f64; 2],
+    row_runs: &mut Vec<Run>,
+) -> Result<(), SliceError> {
+    intervals.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    row_runs.clear();
+    let mut reach: Option<(f64, u8)> = None;
+    for &(a, b, m) in intervals.iter() {
+        if let Some((end, om)) = reach {
+            if a < end - TOUCH_MM && om != m {
+                return Err(SliceError::Overlap {
+                    a: meshes[om as usize].path.clone(),
+                    b: meshes[m as usize].path.clone(),
+                    at: [(a + end.min(b)) / 2.0, y, z],
+                });
+            }
+        }
+        if reach.is_none_or(|(end, _)| b > end) {
+            reach = Some((b, m));
+        }
+        row_runs.push(Run {
+            x0: a - x0,
+            x1: b - x0,
+            material: m,
+        });
+    }
+    Ok(())
 }
 
 /// Buckets a body's triangles by the layers whose mid-plane they may cut.

@@ -26,7 +26,7 @@ mod wdg;
 use control::{ControlCtx, PinOutputs};
 use core::cell::RefCell;
 use defmt_rtt as _;
-use dollop::device::{BoardInfo, Control, Link, ResetCause};
+use dollop::device::{BoardInfo, BoardLink, Control, ResetCause};
 use dollop::wire;
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::Pull;
@@ -67,7 +67,7 @@ const INFO: BoardInfo = BoardInfo {
 /// (`uninit().write`, from a value the compiler cannot fold into a constant), never on the
 /// stack: `.ci/firmware-stack` fails on any frame over 4 KiB.
 static CONTROL_STATE: StaticCell<Control> = StaticCell::new();
-static LINK: StaticCell<Link<FlashStore>> = StaticCell::new();
+static LINK: StaticCell<BoardLink<FlashStore>> = StaticCell::new();
 
 /// Handed to the interrupts once at start (a reference: the contexts live in statics).
 static STEPPER: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Stepper>>> =
@@ -245,9 +245,11 @@ fn control_state(reset: ResetCause) -> &'static mut Control {
 
 /// The link's state, likewise.
 #[inline(never)]
-fn link_state() -> &'static mut Link<FlashStore> {
-    LINK.uninit()
-        .write(Link::new(FlashStore::new(), core::hint::black_box(INFO)))
+fn link_state() -> &'static mut BoardLink<FlashStore> {
+    LINK.uninit().write(BoardLink::new(
+        FlashStore::new(),
+        core::hint::black_box(INFO),
+    ))
 }
 
 /// E-stop on EXTI line 13, port C, rising edge (the normally-closed switch opens).
@@ -271,7 +273,7 @@ async fn usb_task(mut usb: UsbDevice<'static, UsbDriver>) -> ! {
 #[embassy_executor::task]
 async fn link_task(
     mut port: dollop::device::serve::EitherPort<host::UsbPort<UsbDriver>, host::UartPort>,
-    link: &'static mut Link<FlashStore>,
+    link: &'static mut BoardLink<FlashStore>,
 ) -> ! {
     dollop::device::serve(
         &mut port,

@@ -3,13 +3,15 @@
 //! snapshot. Every access is a short critical section; nobody waits.
 
 use core::cell::{Cell, RefCell};
-use dollop::device::{BoardMachine, FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
+use dollop::device::{
+    BoardMachine, ControlOrder, FromLink, JobRecord, ToControl, JOB_QUEUE, ORDER_QUEUE,
+};
 use dollop::wire::{LineErrors, Snapshot};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 
-static ORDERS: Channel<CriticalSectionRawMutex, Order, ORDER_QUEUE> = Channel::new();
+static ORDERS: Channel<CriticalSectionRawMutex, ControlOrder, ORDER_QUEUE> = Channel::new();
 static COMMANDS: Channel<CriticalSectionRawMutex, JobRecord, JOB_QUEUE> = Channel::new();
 static CONFIG: Mutex<CriticalSectionRawMutex, RefCell<Option<BoardMachine>>> =
     Mutex::new(RefCell::new(None));
@@ -22,7 +24,7 @@ pub struct LinkEnd;
 pub struct ControlEnd;
 
 impl ToControl for LinkEnd {
-    fn order(&mut self, order: Order) -> Result<(), Order> {
+    fn order(&mut self, order: ControlOrder) -> Result<(), ControlOrder> {
         ORDERS.try_send(order).map_err(|e| match e {
             embassy_sync::channel::TrySendError::Full(o) => o,
         })
@@ -66,7 +68,7 @@ pub fn drivers_commanded() -> bool {
 }
 
 impl FromLink for ControlEnd {
-    fn next_order(&mut self) -> Option<Order> {
+    fn next_order(&mut self) -> Option<ControlOrder> {
         ORDERS.try_receive().ok()
     }
     fn next_command(&mut self) -> Option<JobRecord> {

@@ -46,7 +46,7 @@ impl Clock {
 /// Asks for `count` steps on `axis` in the next period (called by the control loop).
 pub fn request(axis: Axis, forward: bool, count: u32) {
     let n = count.min(i32::MAX as u32) as i32;
-    // An axis this board has no pins for cannot be asked for: `Link` refuses configs
+    // An axis this board has no pins for cannot be asked for: `BoardLink` refuses configs
     // with more inlets than the board has, so nothing is dropped here in practice.
     if let Some(p) = PENDING.get(axis.index()) {
         p.fetch_add(if forward { n } else { -n }, Ordering::AcqRel);

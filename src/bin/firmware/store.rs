@@ -1,7 +1,7 @@
 //! The job store on the chip: flash sectors 6 to 11 (768 KiB at 0x0804_0000, see
 //! memory.x). Erasing stalls every fetch from flash (the chip) for up to 2 s a sector at
 //! the 32-bit width set here, so the link erases one sector per poll, only while nothing
-//! moves and every valve is shut (`Link` checks that), with the watchdog lengthened
+//! moves and every valve is shut (`BoardLink` checks that), with the watchdog lengthened
 //! around it. Every erase and every program runs with the outputs forced safe through the
 //! registers (`SafeWhileFlashBusy`): while the flash is busy no interrupt can run (vector
 //! table and handlers are in flash), so not even the e-stop could act; with the valves
@@ -71,7 +71,7 @@ fn erase_width_32() {
 /// through the registers. On drop the drivers are enabled again only if the control loop
 /// still commands them enabled (its last published snapshot) and no e-stop is latched:
 /// an e-stop or a halt while the flash was busy keeps them off. The valves are not
-/// reopened: `Link` erases and writes only while every valve is shut. Nothing reopens
+/// reopened: `BoardLink` erases and writes only while every valve is shut. Nothing reopens
 /// them meanwhile: only the control loop drives them, no job runs during an upload, and
 /// the link, which would hand it orders, is the code that is busy here.
 struct SafeWhileFlashBusy;

@@ -182,19 +182,7 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
     let mut prev = Pyramid::new(&imgs[0], lk.levels);
     for i in 0..imgs.len() - 1 {
         let next = Pyramid::new(&imgs[i + 1], lk.levels);
-        let mut dxs = Vec::new();
-        let mut dys = Vec::new();
-        for s in sides[i].iter().step_by(5) {
-            let margin = (0.2 * s.width()).max(6.0);
-            let mut x = s.left + margin;
-            while x <= s.right - margin {
-                if let Some((dx, dy)) = track::track(&prev, &next, x, s.y as f64, lk) {
-                    dxs.push(dx);
-                    dys.push(dy);
-                }
-                x += 4.0;
-            }
-        }
+        let (dxs, dys) = track_inside(&prev, &next, &sides[i], lk);
         tracked.push(dys.len());
         let ok = dys.len() >= 5;
         speed_raw.push(match median(&dys) {
@@ -258,6 +246,30 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
     };
     cal.verdicts = verdicts(&cal, v_signed, o);
     Ok(cal)
+}
+
+/// The moves (x, y in px) from `prev` to `next` of the texture inside the filament: on
+/// every fifth row's sides, every 4 px between them, away from the edges.
+fn track_inside(
+    prev: &Pyramid,
+    next: &Pyramid,
+    sides: &[edges::Sides],
+    lk: LkOptions,
+) -> (Vec<f64>, Vec<f64>) {
+    let mut dxs = Vec::new();
+    let mut dys = Vec::new();
+    for s in sides.iter().step_by(5) {
+        let margin = (0.2 * s.width()).max(6.0);
+        let mut x = s.left + margin;
+        while x <= s.right - margin {
+            if let Some((dx, dy)) = track::track(prev, next, x, s.y as f64, lk) {
+                dxs.push(dx);
+                dys.push(dy);
+            }
+            x += 4.0;
+        }
+    }
+    (dxs, dys)
 }
 
 fn verdicts(cal: &Calibration, v_signed: f64, o: &Options) -> Vec<String> {

@@ -1,20 +1,20 @@
 //! A whole board without hardware, for host tests and in-memory links: `Queues` is the
 //! heapless stand-in for the firmware's embassy-sync channels and snapshot cell;
-//! `SimBoard` runs `Link` and `Control` in virtual time on `RecordingOutputs`, with
+//! `SimBoard` runs `BoardLink` and `Control` in virtual time on `RecordingOutputs`, with
 //! endstops at the travel limits, an e-stop input and a watchdog that resets the board.
 
 use super::control::{Control, Inputs, ResetCause};
-use super::link::{BoardInfo, Link};
+use super::link::{BoardInfo, BoardLink};
 use super::safety::force_safe;
 use super::store::JobStore;
-use super::{BoardMachine, FromLink, JobRecord, Order, ToControl, JOB_QUEUE, ORDER_QUEUE};
+use super::{BoardMachine, ControlOrder, FromLink, JobRecord, ToControl, JOB_QUEUE, ORDER_QUEUE};
 use crate::outputs::RecordingOutputs;
 use crate::wire::Snapshot;
 use heapless::Deque;
 
 /// The shared state between link and control loop, as plain queues.
 pub struct Queues {
-    orders: Deque<Order, ORDER_QUEUE>,
+    orders: Deque<ControlOrder, ORDER_QUEUE>,
     commands: Deque<JobRecord, JOB_QUEUE>,
     config: Option<BoardMachine>,
     snapshot: Snapshot,
@@ -32,7 +32,7 @@ impl Default for Queues {
 }
 
 impl ToControl for Queues {
-    fn order(&mut self, order: Order) -> Result<(), Order> {
+    fn order(&mut self, order: ControlOrder) -> Result<(), ControlOrder> {
         self.orders.push_back(order)
     }
     fn command(&mut self, record: JobRecord) -> Result<(), JobRecord> {
@@ -54,7 +54,7 @@ impl ToControl for Queues {
 }
 
 impl FromLink for Queues {
-    fn next_order(&mut self) -> Option<Order> {
+    fn next_order(&mut self) -> Option<ControlOrder> {
         self.orders.pop_front()
     }
     fn next_command(&mut self) -> Option<JobRecord> {
@@ -79,10 +79,10 @@ pub const SIM_INFO: BoardInfo = BoardInfo {
 /// Watchdog timeout of the simulated board, us (the firmware's too).
 pub const WATCHDOG_US: u64 = 250_000;
 
-/// Link and control loop on recorded outputs, in virtual time.
+/// BoardLink and control loop on recorded outputs, in virtual time.
 pub struct SimBoard<S: JobStore> {
     /// The link half.
-    pub link: Link<S>,
+    pub link: BoardLink<S>,
     /// The control half.
     pub control: Control,
     /// What they share.
@@ -118,7 +118,7 @@ impl<S: JobStore> SimBoard<S> {
         let mut control = Control::new(ResetCause::PowerOn);
         control.power_up(&mut out);
         SimBoard {
-            link: Link::new(store, SIM_INFO),
+            link: BoardLink::new(store, SIM_INFO),
             control,
             queues: Queues::default(),
             out,

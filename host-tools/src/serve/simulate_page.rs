@@ -134,11 +134,7 @@ fn simulate_inner(run: &SimRun, config: &Config, job: &Job) -> Result<Outcome, S
     let mut heat = Heatmap::for_job(job, config);
     let mut series = Series {
         pressure: vec![Vec::new(); inlets],
-        materials: config
-            .inlets
-            .iter()
-            .map(|i| i.material.to_string())
-            .collect(),
+        materials: crate::slicer::material_names(config),
         ..Default::default()
     };
     // Sampled every `sample_every` cycles, doubling whenever the series fills up.

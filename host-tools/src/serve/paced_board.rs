@@ -39,7 +39,7 @@ pub struct PlantNow {
 }
 
 /// A `MemLink` paced by the wall clock, with the reference plant on its valves.
-pub struct SimLink {
+pub struct PacedBoard {
     inner: MemLink,
     speed: f64,
     /// Wall time and board time at the last re-anchor.
@@ -50,13 +50,13 @@ pub struct SimLink {
     pub frame_delay: Duration,
 }
 
-impl SimLink {
+impl PacedBoard {
     /// A freshly powered simulated board running `speed` times real time (no plant until
     /// a config is loaded: `set_plant`).
     pub fn new(speed: f64) -> Self {
         let inner = MemLink::new(Faults::default(), 1);
         let now = inner.now();
-        SimLink {
+        PacedBoard {
             inner,
             speed,
             anchor: (Instant::now(), now),
@@ -152,7 +152,7 @@ impl Coupled {
     }
 }
 
-impl Transport for SimLink {
+impl Transport for PacedBoard {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
         if !self.frame_delay.is_zero() {
             std::thread::sleep(self.frame_delay);
@@ -208,7 +208,7 @@ mod tests {
     #[test]
     fn the_plant_follows_the_boards_valves_in_board_time() {
         let cfg: Config = toml::from_str(crate::serve::design::BUNDLED[0].1).expect("config");
-        let mut s = SimLink::new(1.0);
+        let mut s = PacedBoard::new(1.0);
         assert_eq!(s.plant_now(), None);
         s.set_plant(&cfg, 0).expect("plant");
         let t0 = s.now();
