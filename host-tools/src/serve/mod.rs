@@ -20,6 +20,7 @@ pub mod history;
 pub mod jobs;
 pub mod lock;
 pub mod octoprint;
+pub mod octoprint_common;
 pub mod octoprint_control;
 pub mod paced_board;
 pub mod reply;

@@ -13,8 +13,8 @@
 //! body both slicers show as it is. The commands (job, file select, jog and home) are in
 //! `octoprint_control`. This file stops at the API's shapes.
 
-use super::boards::Board;
 use super::error::ApiError;
+use super::octoprint_common::{board_for, job_flags, OpResult, Plain};
 use super::reply::blocking;
 use super::state::AppState;
 use axum::extract::{Multipart, Path, State};
@@ -32,32 +32,6 @@ pub const API_VERSION: &str = "0.1";
 /// The OctoPrint server version claimed (slicers check only that `text` starts with
 /// "OctoPrint").
 pub const SERVER_VERSION: &str = "1.10.0";
-
-/// A refusal as the OctoPrint API's clients show it: the status and the message as
-/// `text/plain` (exactly that type: Cura's plugin shows the body only then, and
-/// PrusaSlicer shows whatever body comes, so JSON would reach the user with its braces).
-#[derive(Debug)]
-pub struct Plain(pub ApiError);
-
-impl<T: Into<ApiError>> From<T> for Plain {
-    fn from(e: T) -> Self {
-        Plain(e.into())
-    }
-}
-
-impl IntoResponse for Plain {
-    fn into_response(self) -> Response {
-        (
-            self.0.status(),
-            [(header::CONTENT_TYPE, "text/plain")],
-            self.0.message().to_string(),
-        )
-            .into_response()
-    }
-}
-
-/// What the OctoPrint handlers return.
-pub type OpResult<T> = Result<T, Plain>;
 
 /// The routes of this module and of `octoprint_control`.
 pub fn routes() -> Router<Arc<AppState>> {
@@ -80,37 +54,6 @@ pub fn routes() -> Router<Arc<AppState>> {
         )
 }
 
-/// The board an upload's folder names (`path`: a board's name or number, any case, with
-/// or without slashes), or board 0 for no folder.
-pub fn board_for(st: &AppState, folder: &str) -> OpResult<Arc<Board>> {
-    let want = folder.trim().trim_matches('/').trim();
-    let found = if want.is_empty() {
-        st.boards.first()
-    } else {
-        st.boards.iter().find(|b| {
-            let name = b.view.borrow().name.clone();
-            name.eq_ignore_ascii_case(want)
-                || super::store::plain_name(&name).eq_ignore_ascii_case(want)
-                || b.id.to_string() == want
-        })
-    };
-    found.cloned().ok_or_else(|| {
-        let names: Vec<String> = st
-            .boards
-            .iter()
-            .map(|b| format!("{:?} ({})", b.view.borrow().name, b.id))
-            .collect();
-        Plain(if names.is_empty() {
-            ApiError::conflict("there is no board to print on")
-        } else {
-            ApiError::bad(format!(
-                "no board named {want:?}: upload into the folder of one of {}, or into no folder for the first",
-                names.join(", ")
-            ))
-        })
-    })
-}
-
 async fn version() -> Json<Value> {
     Json(json!({
         "api": API_VERSION,
@@ -129,12 +72,6 @@ async fn settings() -> Json<Value> {
         "feature": { "sdSupport": false },
         "webcam": { "webcamEnabled": false, "streamUrl": "", "snapshotUrl": "" },
     }))
-}
-
-/// Whether a board runs a job, and whether that job is paused.
-pub fn job_flags(v: &super::view::View) -> (bool, bool) {
-    let printing = v.mode == Some(dollop::wire::Mode::Job);
-    (printing, printing && v.activity.starts_with("paused"))
 }
 
 /// Board 0's state in OctoPrint's words (`Operational`, `Printing`, `Paused`, `Error`,

@@ -13,7 +13,7 @@ use super::boards::{Board, WorkerOrder};
 use super::design::SliceForm;
 use super::error::ApiError;
 use super::jobs::JobEntry;
-use super::octoprint::{board_for, job_flags, OpResult, Plain};
+use super::octoprint_common::{board_for, job_flags, OpResult, Plain};
 use super::reply::blocking;
 use super::state::AppState;
 use axum::body::Bytes;
