@@ -154,6 +154,28 @@ impl core::fmt::Display for CommandError {
     }
 }
 
+/// Lengthens the last command when it is a print segment that `(dx, dy)` in `material`
+/// continues: same material, same line, same direction (exact in integers). True when it
+/// did, so the caller pushes nothing. Shared by the job writers (the raster slicer, the
+/// G-code importer), which keep one print segment per straight run.
+pub fn extend_last_print(cmds: &mut [Command], dx: i32, dy: i32, material: u8) -> bool {
+    if let Some(Command::Print {
+        dx: pdx,
+        dy: pdy,
+        material: pm,
+    }) = cmds.last_mut()
+    {
+        let cross = *pdx as i64 * dy as i64 - *pdy as i64 * dx as i64;
+        let dot = *pdx as i64 * dx as i64 + *pdy as i64 * dy as i64;
+        if *pm == material && cross == 0 && dot > 0 {
+            *pdx += dx;
+            *pdy += dy;
+            return true;
+        }
+    }
+    false
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

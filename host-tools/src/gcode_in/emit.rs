@@ -165,7 +165,7 @@ impl Emitter {
         self.zs.insert(f[2]);
         let below = self.zs.range(..f[2]).next_back().copied().unwrap_or(0);
         let h = (f[2] - below) as f64 * 1e-3;
-        if crate::slicer::toolpath::extend_last_print(&mut self.cmds, dx, dy, material) {
+        if dollop::command::extend_last_print(&mut self.cmds, dx, dy, material) {
             if let Some(a) = self.asked.last_mut() {
                 a.add(len, section, h);
             }

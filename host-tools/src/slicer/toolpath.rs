@@ -88,7 +88,7 @@ impl Emitter {
         self.at[0] = to[0];
         self.at[1] = to[1];
         self.stats.print_mm += ((dx as f64).powi(2) + (dy as f64).powi(2)).sqrt() * 1e-3;
-        if extend_last_print(&mut self.cmds, dx, dy, material) {
+        if dollop::command::extend_last_print(&mut self.cmds, dx, dy, material) {
             return;
         }
         self.cmds.push(Command::Print { dx, dy, material });
@@ -480,27 +480,6 @@ fn check_travel(tp: &PlannedPath, machine: &Machine<f64, 4>, what: &str) -> Resu
         }
     }
     Ok(())
-}
-
-/// Lengthens the last command when it is a print segment that `(dx, dy)` in `material`
-/// continues: same material, same line, same direction (exact in integers). True when it
-/// did, so the caller pushes nothing.
-pub fn extend_last_print(cmds: &mut [Command], dx: i32, dy: i32, material: u8) -> bool {
-    if let Some(Command::Print {
-        dx: pdx,
-        dy: pdy,
-        material: pm,
-    }) = cmds.last_mut()
-    {
-        let cross = *pdx as i64 * dy as i64 - *pdy as i64 * dx as i64;
-        let dot = *pdx as i64 * dx as i64 + *pdy as i64 * dy as i64;
-        if *pm == material && cross == 0 && dot > 0 {
-            *pdx += dx;
-            *pdy += dy;
-            return true;
-        }
-    }
-    false
 }
 
 #[cfg(test)]
