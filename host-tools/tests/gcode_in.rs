@@ -340,6 +340,33 @@ fn the_command_line_prints_the_summary_and_refuses_in_one_line() {
     assert!(!out.status.success());
     assert!(err.contains("line 4: tool 2 has no inlet"), "{err}");
     assert!(!dir.path().join("t.dlp").exists());
+    // The beads' own widths: kept by the run-style G-code export, which runs the executor;
+    // the fine profile lays one section, and says so.
+    let narrow = dollop_host::fixtures::EXAMPLE_CONFIG
+        .replace("bead_area_mm2 = 0.48", "bead_area_mm2 = 0.40");
+    assert_ne!(narrow, dollop_host::fixtures::EXAMPLE_CONFIG);
+    std::fs::write(&cfg, narrow).unwrap();
+    let out = run(
+        "widths.gcode",
+        &[
+            "--out",
+            "w.dlp",
+            "--gcode",
+            "w.gcode",
+            "--gcode-style",
+            "fine",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(
+            "this job's 2 Section command(s) (its beads' own widths) are not in the G-code"
+        ),
+        "{err}"
+    );
+    let out = run("widths.gcode", &["--out", "w.dlp", "--gcode", "w.gcode"]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("Section command"));
 }
 
 /// The sections a job writes, mm^2.

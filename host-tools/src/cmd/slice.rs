@@ -536,6 +536,19 @@ fn gcode_text(
             req.gcode.style.name()
         );
     }
+    // These profiles model one section for the whole job: say so rather than drop the
+    // beads' own widths (an imported slicer's G-code) unannounced.
+    let sections = sliced
+        .commands
+        .iter()
+        .filter(|c| matches!(c, dollop::Command::Section { .. }))
+        .count();
+    if sections > 0 {
+        eprintln!(
+            "note: --gcode-style {} lays the config's section on every bead: this job's {sections} Section command(s) (its beads' own widths) are not in the G-code; --gcode-style run keeps them",
+            req.gcode.style.name()
+        );
+    }
     Ok(gcode::export(
         &sliced.commands,
         sliced.header.start_um,
