@@ -455,22 +455,31 @@ mod tests {
         (header, body, cmds)
     }
 
+    /// The commands `body` decodes to, fed `chunk` bytes at a time.
+    fn decode_in_chunks(h: &JobHeader, body: &[u8], chunk: usize) -> Vec<Command> {
+        let mut d = BodyDecoder::new(h);
+        let mut got = Vec::new();
+        for c in body.chunks(chunk) {
+            d.feed(c, |cmd| -> Result<(), ()> {
+                got.push(cmd);
+                Ok(())
+            })
+            .unwrap()
+            .unwrap();
+        }
+        d.finish().unwrap();
+        got
+    }
+
     #[test]
     fn chunked_decoding_gives_the_commands_for_every_chunk_size() {
         let (h, body, cmds) = sample();
         for chunk in 1..=body.len() {
-            let mut d = BodyDecoder::new(&h);
-            let mut got = Vec::new();
-            for c in body.chunks(chunk) {
-                d.feed(c, |cmd| -> Result<(), ()> {
-                    got.push(cmd);
-                    Ok(())
-                })
-                .unwrap()
-                .unwrap();
-            }
-            d.finish().unwrap();
-            assert_eq!(got, cmds, "chunk size {chunk}");
+            assert_eq!(
+                decode_in_chunks(&h, &body, chunk),
+                cmds,
+                "chunk size {chunk}"
+            );
         }
     }
 
@@ -541,18 +550,11 @@ mod tests {
         assert_eq!(version_for(&cmds), FORMAT_VERSION_SECTIONS);
         assert_eq!(version_for(&sample().2), FORMAT_VERSION);
         for chunk in [1, 3, body.len()] {
-            let mut d = BodyDecoder::new(&h);
-            let mut got = Vec::new();
-            for c in body.chunks(chunk) {
-                d.feed(c, |cmd| -> Result<(), ()> {
-                    got.push(cmd);
-                    Ok(())
-                })
-                .unwrap()
-                .unwrap();
-            }
-            d.finish().unwrap();
-            assert_eq!(got, cmds, "chunk size {chunk}");
+            assert_eq!(
+                decode_in_chunks(&h, &body, chunk),
+                cmds,
+                "chunk size {chunk}"
+            );
         }
         // The same body under a version 1 header: the section is where it stops.
         let (h1, body1, _) = with_section(FORMAT_VERSION);
