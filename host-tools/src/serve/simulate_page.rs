@@ -190,19 +190,7 @@ fn simulate_inner(run: &SimRun, config: &Config, job: &Job) -> Result<Outcome, S
     w.flush().map_err(|e| format!("writing the trace: {e}"))?;
     drop(w);
     heat.mark_boundaries(&result.metrics.boundaries);
-    let mut png = Vec::new();
-    {
-        use image::ImageEncoder;
-        let img = heat.figure()?;
-        image::codecs::png::PngEncoder::new(&mut png)
-            .write_image(
-                img.as_raw(),
-                img.width(),
-                img.height(),
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(|e| format!("cannot draw the heatmap: {e}"))?;
-    }
+    let png = super::reply::png(&heat.figure()?).map_err(|e| e.message().to_string())?;
     let m = &result.metrics;
     let figures = SimFigures {
         time_s: result.time_s,
