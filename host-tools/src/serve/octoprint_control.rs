@@ -209,8 +209,17 @@ fn read_line(text: &str, relative: bool) -> Result<Option<Line>, String> {
     }
 }
 
-/// The orders a batch of monitor lines asks for, every line checked before any runs.
-fn read_lines(lines: &[String]) -> Result<Vec<WorkerOrder>, String> {
+/// What a batch of monitor lines asks the board to do, in order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Step {
+    /// Move one axis by this many mm.
+    Jog(Axis, f64),
+    /// Home every axis.
+    Home,
+}
+
+/// The steps a batch of monitor lines asks for, every line checked before any runs.
+fn read_lines(lines: &[String]) -> Result<Vec<Step>, String> {
     if lines.len() > MAX_LINES {
         return Err(format!(
             "{} lines in one request; at most {MAX_LINES} are taken",
@@ -221,11 +230,11 @@ fn read_lines(lines: &[String]) -> Result<Vec<WorkerOrder>, String> {
     for l in lines {
         match read_line(l, relative)? {
             Some(Line::Relative(r)) => relative = r,
-            Some(Line::Home) => orders.push(WorkerOrder::Home(None)),
+            Some(Line::Home) => orders.push(Step::Home),
             Some(Line::Jog(d)) => {
                 for (axis, mm) in [Axis::X, Axis::Y, Axis::Z].into_iter().zip(d) {
                     if mm != 0.0 {
-                        orders.push(WorkerOrder::Jog(axis, mm, None));
+                        orders.push(Step::Jog(axis, mm));
                     }
                 }
             }
@@ -246,21 +255,20 @@ pub async fn printer_command(State(st): St, body: Bytes) -> OpResult<StatusCode>
     }
     let l: Lines = parse(&body, "printer command")?;
     let lines: Vec<String> = l.commands.into_iter().chain(l.command).collect();
-    let orders = read_lines(&lines).map_err(|m| Plain(ApiError::bad(m)))?;
+    let steps = read_lines(&lines).map_err(|m| Plain(ApiError::bad(m)))?;
     let board = first_board(&st)?;
     // The server's --config for a board that has none yet, as the dashboard's own jog
     // falls back to.
     let fallback = || st.cli_config.clone().map(Box::new);
-    for o in orders {
-        match o {
-            WorkerOrder::Home(_) => {
+    for step in steps {
+        match step {
+            Step::Home => {
                 carry_out(&st, &board, "home", WorkerOrder::Home(fallback())).await?;
                 homed(&board).await?;
             }
-            WorkerOrder::Jog(a, mm, _) => {
+            Step::Jog(a, mm) => {
                 carry_out(&st, &board, "jog", WorkerOrder::Jog(a, mm, fallback())).await?
             }
-            other => carry_out(&st, &board, "order", other).await?,
         }
     }
     Ok(StatusCode::NO_CONTENT)
@@ -308,16 +316,15 @@ async fn homed(board: &Board) -> OpResult<()> {
 mod tests {
     use super::*;
 
-    fn lines(l: &[&str]) -> Result<Vec<WorkerOrder>, String> {
+    fn lines(l: &[&str]) -> Result<Vec<Step>, String> {
         read_lines(&l.iter().map(|s| s.to_string()).collect::<Vec<_>>())
     }
 
-    fn shape(o: &[WorkerOrder]) -> Vec<String> {
+    fn shape(o: &[Step]) -> Vec<String> {
         o.iter()
             .map(|o| match o {
-                WorkerOrder::Jog(a, mm, _) => format!("jog {a:?} {mm}"),
-                WorkerOrder::Home(_) => "home".into(),
-                _ => "other".into(),
+                Step::Jog(a, mm) => format!("jog {a:?} {mm}"),
+                Step::Home => "home".into(),
             })
             .collect()
     }

@@ -799,7 +799,7 @@ function renderHeader(data) {
     box.dataset.key = key;
     box.replaceChildren(...data.boards.map((b) => el("span", { class: "badge", "data-board": String(b.id) },
       el("span", { class: "badge-text" }),
-      ...(b.connected ? [el("button", { class: "abort-now", title: `stop ${b.name} now (valves shut, motion stops)`, onclick: () => boardAction(b.id, "abort") }, "Abort")] : []))));
+      ...(b.connected ? [el("button", { class: "abort-now", onclick: () => boardAction(b.id, "abort") }, "Abort")] : []))));
   }
   for (const b of data.boards) {
     const badge = box.querySelector(`.badge[data-board="${b.id}"]`);
@@ -808,7 +808,8 @@ function renderHeader(data) {
     const pct = b.job && (b.mode === "Job" || b.progress > 0) ? ` ${(b.progress * 100).toFixed(0)} %` : "";
     badge.querySelector(".badge-text").textContent = `${data.boards.length > 1 ? b.id + ": " : ""}${state}${pct}`;
     badge.dataset.state = b.fault ? "fault" : b.mode === "Job" ? "printing" : b.connected ? "idle" : "off";
-    // A board with no config loaded cannot move or open a valve: nothing to stop.
+    // A board with no config loaded cannot move or open a valve: nothing to stop. (Its
+    // title is set here only, as the button is built just above when it is new.)
     const stop = badge.querySelector(".abort-now");
     if (stop) {
       stop.disabled = b.mode === "Unconfigured";
