@@ -1,12 +1,28 @@
 //! Pictures framed for a person: a plate picture (or several, one per layer) set on mm axes
 //! with a title, a key of materials or marks, and a labelled colour bar with units. The
 //! pictures themselves are painted by their owners (`slicer::preview`, `simulate::heatmap`,
-//! `inspect::picture`); this only frames them. Text uses the font embedded in the binary.
+//! `inspect::picture`); this only frames them, and encodes a picture as PNG bytes for those
+//! who send it rather than write it. Text uses the font embedded in the binary.
 
 use image::RgbImage;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::sync::Once;
+
+/// A picture as PNG bytes (in memory: the dashboard's replies).
+pub fn png(img: &RgbImage) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| format!("cannot draw the picture: {e}"))?;
+    Ok(out)
+}
 
 static FONT: Once = Once::new();
 /// The font family plotters draws text in (registered from the embedded font).

@@ -90,15 +90,5 @@ pub fn download(name: String, bytes: Vec<u8>) -> Response {
 
 /// A picture as PNG bytes.
 pub fn png(img: &image::RgbImage) -> ApiResult<Vec<u8>> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| ApiError::internal(format!("cannot draw the picture: {e}")))?;
-    Ok(out)
+    crate::figure::png(img).map_err(ApiError::internal)
 }

@@ -190,7 +190,7 @@ fn simulate_inner(run: &SimRun, config: &Config, job: &Job) -> Result<Outcome, S
     w.flush().map_err(|e| format!("writing the trace: {e}"))?;
     drop(w);
     heat.mark_boundaries(&result.metrics.boundaries);
-    let png = super::reply::png(&heat.figure()?).map_err(|e| e.message().to_string())?;
+    let png = crate::figure::png(&heat.figure()?)?;
     let m = &result.metrics;
     let figures = SimFigures {
         time_s: result.time_s,
