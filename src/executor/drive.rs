@@ -97,7 +97,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 Phase::Print { stopping } => {
                     self.head += dv_left;
                     dv_left = Vol::ZERO;
-                    if !self.follow_path(stopping, flow.q)? {
+                    if !self.follow_path(stopping, flow.q)?
+                        && !(stopping && self.tail_ran_out(flow.q))
+                    {
                         break;
                     }
                 }
@@ -326,7 +328,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             };
             self.last_index = seg.index;
             let past = self.head >= seg.u_end;
-            // A tail that ran out short of the end: the rest is within the stop threshold.
+            // A tail that ran out short of the end: the rest is within the stop threshold
+            // (short of an earlier segment: `tail_ran_out`).
             let tail_done = seg.last && stopping && q <= q_stop && shut;
             if past || tail_done {
                 if seg.last {
@@ -352,6 +355,28 @@ impl<R: Real, const N: usize> Executor<R, N> {
             return Ok(false);
         }
         Ok(false)
+    }
+
+    /// A stopping bead's tail that ran out (flow within the stop threshold, valves shut)
+    /// short of a segment before the last: a last segment shorter than the shortfall (a
+    /// slicer's 2 um move ending a perimeter) left the head on the one before, waiting
+    /// for paste that never came, and the job never ended. Ends the bead there; true if
+    /// it did. Out of line: `follow_path` sees the last segment's case itself.
+    #[cold]
+    #[inline(never)]
+    fn tail_ran_out(&mut self, q: R) -> bool {
+        if q > self.machine.q_stop || self.model.commanded() != 0 {
+            return false;
+        }
+        while let Some(Item::Seg(seg)) = self.plan.front() {
+            let seg = *seg;
+            if seg.last {
+                self.end_bead(seg, true);
+                return true;
+            }
+            self.plan.pop_front();
+        }
+        false
     }
 
     fn end_bead(&mut self, seg: Seg<R>, stopping: bool) {
