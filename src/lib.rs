@@ -10,6 +10,7 @@ pub mod command;
 pub mod config;
 pub mod device;
 pub mod executor;
+pub mod flow_follow;
 pub mod flow_model;
 mod fmt;
 pub mod job;

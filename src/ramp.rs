@@ -155,6 +155,39 @@ impl<const N: usize> Ramp<N> {
         self.narrowing |= self.goal != self.half || self.half != self.window / 2;
     }
 
+    /// Keeps the push on its slow path for the next frame (`push_narrow` says when it is
+    /// done otherwise): the flow's follower (`crate::flow_follow`) is on.
+    pub fn keep_slow(&mut self) {
+        self.narrowing = true;
+    }
+
+    /// The mean as `position` has it, without the follower's bend: the newest frame's X/Y
+    /// and the mean's offset from it, units.
+    pub fn mean_parts(&self, steps: &mut StepRamps) -> ([i32; 2], [f32; 2]) {
+        let newest = self.at(0).pos;
+        let w = self.span as i32;
+        let bent = steps.blend().bent();
+        let o = if steps.any() {
+            steps.offset::<f32>(self.newest, self.half)
+        } else {
+            [0.0; 2]
+        };
+        let mut off = [0.0; 2];
+        for a in 0..2 {
+            let d = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
+            off[a] = d as f32 / w as f32 - o[a] - bent[a];
+        }
+        ([newest[0], newest[1]], off)
+    }
+
+    /// Bends the mean by `d` (X, Y, units) from this frame on: the flow follower's
+    /// (`crate::flow_follow`), held in the sum with the blend's offset.
+    pub fn bend(&mut self, d: [f32; 2], steps: &mut StepRamps) {
+        let change = steps.blend().bend(d, self.span);
+        self.sum[0] = self.sum[0].wrapping_add(change[0]);
+        self.sum[1] = self.sum[1].wrapping_add(change[1]);
+    }
+
     /// Whether the push must be `push_narrow`: the mean's window is narrower than the
     /// ring's, or changing.
     #[inline(always)]

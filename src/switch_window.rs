@@ -49,8 +49,8 @@ pub fn switch_half<R: Real, const N: usize>(
     model: &FlowModel<R, N>,
     closing: u32,
     opening: Option<u8>,
-    turns: impl Iterator<Item = Turn>,
-) -> Option<u32> {
+    turns: impl Iterator<Item = Turn> + Clone,
+) -> Option<(u32, bool)> {
     if model.syringes() || !model.all_linear() {
         return None;
     }
@@ -87,31 +87,71 @@ pub fn switch_half<R: Real, const N: usize>(
     } else {
         0.0
     };
-    let mut limit = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32() * RAMP_SHARE as f32;
+    let whole = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32();
+    let mut limit = whole * RAMP_SHARE as f32;
+    let delay = m.inlets.iter().fold(0.0f32, |d, i| {
+        d.max(i.open_delay_s.max(i.close_delay_s).to_f32())
+    });
+    // Several pastes in the channel: the flow's change is the follower's
+    // (`crate::flow_follow`), a head speed slewed within the limit, and the window is
+    // sized for the turns and the plan's rounding only. A box sized for the change
+    // instead left the fine features 8.3 % off over 0.2 mm at 500 mm/s^2; the follower,
+    // 2.1 %. Not where a fillet tighter than the limit allows at the flow's speed lies
+    // within the change's reach: the follower's change of speed on top of the fillet's
+    // turn took the 0.6 mm stripes' row ends to 711 mm/s^2 at 500.
+    let mut follow = false;
     if model.channel().len() > 1 {
-        // Several pastes in the channel change its resistance as they move, on top of what
-        // the valves do: the head's speed by at most `v_flow_max` over the channel's volume
-        // of bead, at up to `v_flow_max` (`step_ramp_accel`). The window leaves a quarter of
-        // that bound to them. Measured at 500 mm/s^2 on 48 px PNGs (section off over
-        // 0.2 mm, X / Y): no room, fine features 5.5 %, 519 / 511; half, 12.4 %, 443 / 488;
-        // a quarter, 8.3 %, 458 / 488. The machine's window (before) was 20 %, and it
-        // sized the 0.6 mm stripes as if the channel held one paste, 685 mm/s^2.
-        let along = m.v_channel.mm3::<f32>() / s;
-        let v = m.v_flow_max.to_f32();
-        let moving = if along > 0.0 {
-            0.25 * v * v / along
-        } else {
-            f32::INFINITY
+        let v = v_o.max(v_c);
+        let reach = v * (delay + tau_r.max(tau_d));
+        // The speed the head meets a turn at: the flow's now, or the opening paste's
+        // through a channel full of it (before the flush it may pass faster, briefly).
+        let total: f32 = model
+            .channel()
+            .in_channel()
+            .iter()
+            .map(|x| x.mm3::<f32>())
+            .sum();
+        let flushed = match open {
+            Some(inlet) if inlet.law.a.to_f32() * total > 0.0 => {
+                inlet.supply_pa.to_f32() / (inlet.law.a.to_f32() * total) / s
+            }
+            _ => 0.0,
         };
-        let left = limit - moving;
-        if left.is_nan() || left <= 0.25 * limit {
-            return None;
+        let v = v_c.max(flushed.min(v));
+        follow = !turns.clone().take(TURNS_AHEAD).any(|t| {
+            let (x, y) = (t.to[0] - t.from[0], t.to[1] - t.from[1]);
+            // A turn of more than about 6 degrees (segments split at a boundary run on
+            // straight, with no fillet).
+            t.at < reach && t.radius * whole < v * v && x * x + y * y > 0.01
+        });
+        if !follow {
+            // The box then: a quarter of the contents' motion bound left to them (their
+            // resistance changes as they move: the head's speed by at most `v_flow_max`
+            // over the channel's volume of bead, at up to `v_flow_max`;
+            // `step_ramp_accel`). Measured at 500 mm/s^2 on the fine features (section off
+            // over 0.2 mm, X / Y): no room, 5.5 %, 519 / 511; half, 12.4 %, 443 / 488; a
+            // quarter, 8.3 %, 458 / 488.
+            let along = m.v_channel.mm3::<f32>() / s;
+            let vf = m.v_flow_max.to_f32();
+            let moving = if along > 0.0 {
+                0.25 * vf * vf / along
+            } else {
+                f32::INFINITY
+            };
+            let left = limit - moving;
+            if left.is_nan() || left <= 0.25 * limit {
+                return None;
+            }
+            limit = left;
         }
-        limit = left;
     }
     // The decay from the kink: the steepest chord of a falling exponential starts there.
-    let mut w = window(v_c, tau_d, limit);
-    if v_o > 0.0 {
+    let mut w = if follow {
+        0.0
+    } else {
+        window(v_c, tau_d, limit)
+    };
+    if v_o > 0.0 && !follow {
         // The rise takes over where it crosses the decay; Newton from below the crossing
         // (the difference is concave and rising) stays below it, so what is left of the
         // rise is never underestimated.
@@ -140,9 +180,6 @@ pub fn switch_half<R: Real, const N: usize>(
     // but sizing the turns for that took the chessboard's every window back to the
     // machine's (section 14.5 % off at 500 mm/s^2): they are sized for the flushed speed.
     let v = v_o.max(v_c);
-    let delay = m.inlets.iter().fold(0.0f32, |d, i| {
-        d.max(i.open_delay_s.max(i.close_delay_s).to_f32())
-    });
     let settle = 4.0
         * open
             .map_or(0.0, |_| tau_r)
@@ -167,7 +204,7 @@ pub fn switch_half<R: Real, const N: usize>(
         return None;
     }
     let h = (libm::ceilf(cycles) as u32) / 2;
-    Some(h.max(min_half(m, limit)))
+    Some((h.max(min_half(m, limit)), follow))
 }
 
 /// A fillet of the bead ahead: `radius` mm, turning the head from unit `from` to unit

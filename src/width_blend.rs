@@ -29,8 +29,16 @@ pub struct WidthBlend {
     /// `(w dt)^2` and `2 w dt` of the return, per push.
     k1: f32,
     k2: f32,
-    active: bool,
+    /// `RETURNING` while an offset returns, `BENT` while the follower bends the mean: one
+    /// load tells the push that neither is (the speed-ramp machine's worst tick).
+    state: u8,
+    /// The flow follower's bend of the mean (`crate::flow_follow`), units, held in the
+    /// ring's sum with the offset so that the tick's usual path pays nothing for it.
+    bend: [f32; 2],
 }
+
+const RETURNING: u8 = 1;
+const BENT: u8 = 2;
 
 impl WidthBlend {
     /// No offset, no return (a ring of window 1).
@@ -41,7 +49,8 @@ impl WidthBlend {
             held: [0; 2],
             k1: 0.0,
             k2: 0.0,
-            active: false,
+            state: 0,
+            bend: [0.0; 2],
         }
     }
 
@@ -59,7 +68,7 @@ impl WidthBlend {
 
     /// Whether an offset is still returning (the ring keeps its slow path).
     pub fn active(&self) -> bool {
-        self.active
+        self.state & RETURNING != 0
     }
 
     /// What the ring's sum holds of the offset (units times the mean's span).
@@ -72,30 +81,55 @@ impl WidthBlend {
         if self.k1 > 0.0 {
             self.offset[0] -= moved[0];
             self.offset[1] -= moved[1];
-            self.active = true;
+            self.state |= RETURNING;
         }
     }
 
     /// One push of the return; the change (units times `span`) the ring's sum takes so
     /// that it holds the offset over a mean of `span` frames.
     pub fn advance(&mut self, span: u32) -> [i32; 2] {
-        if !self.active {
+        if self.state == 0 {
             return [0; 2];
         }
-        let mut spent = true;
-        for a in 0..2 {
-            self.rate[a] -= self.k1 * self.offset[a] + self.k2 * self.rate[a];
-            self.offset[a] += self.rate[a];
-            spent &= libm::fabsf(self.offset[a]) < SPENT && libm::fabsf(self.rate[a]) < SPENT;
+        if self.state & RETURNING != 0 {
+            let mut spent = true;
+            for a in 0..2 {
+                self.rate[a] -= self.k1 * self.offset[a] + self.k2 * self.rate[a];
+                self.offset[a] += self.rate[a];
+                spent &= libm::fabsf(self.offset[a]) < SPENT && libm::fabsf(self.rate[a]) < SPENT;
+            }
+            if spent {
+                self.offset = [0.0; 2];
+                self.rate = [0.0; 2];
+                self.state &= !RETURNING;
+            }
         }
-        if spent {
-            self.offset = [0.0; 2];
-            self.rate = [0.0; 2];
-            self.active = false;
+        self.hold(span)
+    }
+
+    /// The follower's bend `d` (units) from now; the change the ring's sum takes, as
+    /// `advance`'s.
+    pub fn bend(&mut self, d: [f32; 2], span: u32) -> [i32; 2] {
+        self.bend = d;
+        if d == [0.0; 2] {
+            self.state &= !BENT;
+        } else {
+            self.state |= BENT;
         }
+        self.hold(span)
+    }
+
+    /// The follower's bend the sum holds now, units.
+    pub fn bent(&self) -> [f32; 2] {
+        self.bend
+    }
+
+    #[inline(always)]
+    fn hold(&mut self, span: u32) -> [i32; 2] {
         let mut change = [0; 2];
-        for ((c, held), offset) in change.iter_mut().zip(&mut self.held).zip(self.offset) {
-            let now = libm::roundf(offset * span as f32) as i32;
+        let held = self.held.iter_mut().zip(self.offset.iter().zip(&self.bend));
+        for (c, (held, (offset, bend))) in change.iter_mut().zip(held) {
+            let now = libm::roundf((offset + bend) * span as f32) as i32;
             *c = now.wrapping_sub(*held);
             *held = now;
         }

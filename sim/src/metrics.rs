@@ -101,6 +101,12 @@ pub struct Metrics {
     pub section_long_range: (f64, f64),
     /// Where the worst long-window cross-section occurred (x, y), mm.
     pub section_long_worst_at: [f64; 2],
+    /// As `section_long_range`, over the long windows away from turns only (the head's
+    /// heading within `STRAIGHT_DEG` over the window): the issue's measure, "away from
+    /// bead ends and turns". (1, 1) with none.
+    pub section_straight_range: (f64, f64),
+    /// Where the worst of those occurred (x, y), mm.
+    pub section_straight_worst_at: [f64; 2],
     /// Every cross-section / S over `SECTION_WINDOW_MM` windows, in bead order: for
     /// `section_band`, the issue's own measure (a percentile range, not the worst).
     pub section_samples: Vec<f64>,
@@ -133,6 +139,10 @@ impl Metrics {
     pub fn worst_section_long(&self) -> f64 {
         (1.0 - self.section_long_range.0).max(self.section_long_range.1 - 1.0)
     }
+    /// Largest |cross-section / S - 1| over `SECTION_LONG_MM` windows away from turns.
+    pub fn worst_section_straight(&self) -> f64 {
+        (1.0 - self.section_straight_range.0).max(self.section_straight_range.1 - 1.0)
+    }
     /// The bead width band as issue 22 measures it: p99 - p1 of the cross-section / S
     /// (width / pitch at the layer height) over the 0.02 mm windows (`long`: 0.2 mm)
     /// away from bead ends; returns (p1, p99). (1, 1) with no windows.
@@ -162,6 +172,31 @@ fn percentile(v: &[f64], q: f64) -> f64 {
 /// error; over 0.02 mm it is 1e-4, while a bulge or neck that a nozzle of 0.1 mm or more
 /// lays down is still resolved.
 pub const SECTION_WINDOW_MM: f64 = 0.02;
+
+/// Most a long window's short windows' headings may turn from its chord and the window
+/// still count as away from turns, degrees: a 0.2 mm window inside a 0.4 mm fillet (the
+/// tightest row-end turn at 0.8 mm pitch) turns 29 degrees, one along a straight bead
+/// only by the plant's step jitter.
+pub const STRAIGHT_DEG: f64 = 10.0;
+
+/// Whether the long window made of `recent`'s short windows (volume, length, end) runs
+/// straight: every short window's chord within `STRAIGHT_DEG` of the whole one's.
+fn straight(recent: &std::collections::VecDeque<(f64, f64, [f64; 2])>) -> bool {
+    let (Some(first), Some(last)) = (recent.front(), recent.back()) else {
+        return true;
+    };
+    let chord = [last.2[0] - first.2[0], last.2[1] - first.2[1]];
+    let n = chord[0].hypot(chord[1]);
+    if n <= 0.0 {
+        return false;
+    }
+    let cos = STRAIGHT_DEG.to_radians().cos();
+    recent.iter().zip(recent.iter().skip(1)).all(|(a, b)| {
+        let d = [b.2[0] - a.2[0], b.2[1] - a.2[1]];
+        let l = d[0].hypot(d[1]);
+        l <= 0.0 || (d[0] * chord[0] + d[1] * chord[1]) / (l * n) >= cos
+    })
+}
 
 /// Path length of the long cross-section window, mm (the issue's "every 0.2 mm of
 /// bead"; `dollop::config::SECTION_WINDOW_MM`).
@@ -204,7 +239,7 @@ pub struct Meter {
     last_pos: [f64; 2],
     /// The current bead's latest short windows (volume, length), at least
     /// `SECTION_LONG_MM` of them once the bead is that long.
-    recent: std::collections::VecDeque<(f64, f64)>,
+    recent: std::collections::VecDeque<(f64, f64, [f64; 2])>,
     metrics: Metrics,
 }
 
@@ -278,6 +313,7 @@ impl Meter {
             metrics: Metrics {
                 section_range: (f64::INFINITY, f64::NEG_INFINITY),
                 section_long_range: (f64::INFINITY, f64::NEG_INFINITY),
+                section_straight_range: (f64::INFINITY, f64::NEG_INFINITY),
                 ..Default::default()
             },
         }
@@ -351,7 +387,7 @@ impl Meter {
         self.metrics.section_range = (lo.min(ratio), hi.max(ratio));
         self.metrics.section_cycles += 1;
         self.metrics.section_samples.push(ratio);
-        self.recent.push_back((vol, ds));
+        self.recent.push_back((vol, ds, at));
         while self.recent.len() > 1
             && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
         {
@@ -369,6 +405,13 @@ impl Meter {
             }
             self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
             self.metrics.section_long_samples.push(ratio);
+            if straight(&self.recent) {
+                let (lo, hi) = self.metrics.section_straight_range;
+                if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
+                    self.metrics.section_straight_worst_at = at;
+                }
+                self.metrics.section_straight_range = (lo.min(ratio), hi.max(ratio));
+            }
         }
     }
 
@@ -385,6 +428,9 @@ impl Meter {
         }
         if !self.metrics.section_long_range.0.is_finite() {
             self.metrics.section_long_range = (1.0, 1.0);
+        }
+        if !self.metrics.section_straight_range.0.is_finite() {
+            self.metrics.section_straight_range = (1.0, 1.0);
         }
         self.metrics.bead_sections = self
             .bead_s
@@ -561,6 +607,25 @@ pub fn sections_of(commands: &[Command], initial: f64) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
+
+    /// A window along a straight bead counts as away from turns; one through a 0.4 mm
+    /// fillet (a row end's turn at 0.8 mm pitch) does not; one with no length does not.
+    #[test]
+    fn straight_windows_are_told_from_turns() {
+        let line: std::collections::VecDeque<_> = (0..11)
+            .map(|i| (0.0, 0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64]))
+            .collect();
+        assert!(straight(&line));
+        let arc: std::collections::VecDeque<_> = (0..11)
+            .map(|i| {
+                let a = i as f64 * 0.02 / 0.4;
+                (0.0, 0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())])
+            })
+            .collect();
+        assert!(!straight(&arc));
+        let still: std::collections::VecDeque<_> = (0..3).map(|_| (0.0, 0.0, [1.0, 1.0])).collect();
+        assert!(!straight(&still));
+    }
     use super::*;
 
     #[test]

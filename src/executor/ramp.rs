@@ -7,7 +7,7 @@ use crate::config::Machine;
 use crate::outputs::Outputs;
 use crate::ramp::{to_units, Frame};
 use crate::real::Real;
-use crate::state::{Fault, Report};
+use crate::state::{Fault, Report, RunState};
 use crate::vol::Vol;
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -20,6 +20,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let per_unit = crate::ramp::frames_per_unit(step_ramp_accel(m), m.dt().to_f32());
             self.ramp
                 .reset(m.ramp_cycles, f, &mut self.step_ramps, per_unit);
+            // The follower of a mixed channel's flow: the ramps' share of the X/Y limit
+            // in position units a frame squared.
+            let dt = m.dt().to_f32();
+            let a = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32()
+                * crate::config::RAMP_SHARE as f32;
+            self.follow.reset(m.ramp_cycles / 2, a * dt * dt * 1.0e4);
         }
     }
 
@@ -101,6 +107,22 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         self.ramp.push_narrow(f, &mut self.step_ramps);
+        if self.follow.active() {
+            self.follow.push(f.dv);
+            self.follow_flow();
+            self.ramp.keep_slow();
+        }
+    }
+
+    /// Bends the ramp's mean where the flow's follower (`crate::flow_follow`) puts the
+    /// head. Out of line: only while a mixed channel's flow changes.
+    #[inline(never)]
+    fn follow_flow(&mut self) {
+        let c = *self.ramp.current();
+        let printing = matches!(c.state, RunState::Printing | RunState::Settling);
+        let (base, off) = self.ramp.mean_parts(&mut self.step_ramps);
+        let d = self.follow.follow(base, off, c.dv, printing);
+        self.ramp.bend(d, &mut self.step_ramps);
     }
 }
 

@@ -215,15 +215,23 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     to: f2(b.dir),
                 })
             });
-        let h = crate::switch_window::switch_half(
+        let (h, follow) = crate::switch_window::switch_half(
             &self.machine,
             &self.model,
             self.model.commanded(),
             opening,
             turns,
         )
-        .unwrap_or(self.machine.ramp_cycles / 2);
+        .unwrap_or((self.machine.ramp_cycles / 2, false));
         self.ramp.set_goal(h);
+        if follow {
+            // Sized for the turns and rounding only: the follower takes the flow's change.
+            // The bead's speed per volume: position units (1e-4 mm) per volume unit
+            // (1e-10 mm^3, `Vol`), through the bead's own section.
+            let per_dv = self.inv_s.to_f32() * 1.0e-6;
+            self.follow.start(per_dv);
+            self.ramp.keep_slow();
+        }
     }
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs

@@ -82,7 +82,7 @@ pub fn run(cfg: &Config, job: &Job) -> RunResult {
 pub fn summary(name: &str, r: &RunResult) {
     let m = &r.metrics;
     eprintln!(
-        "{name}: {:?} {:?} after {:.2} s, {} boundaries, worst {:.4} mm, section {:.5}..{:.5} over {} cycles (worst at {:?}), off-path {:.4} mm3, slivers {}, switches {}, peak accel {:.0} mm/s2, step error {:.3}; over 0.2 mm: section {:.4}..{:.4} (worst at {:?}); axis accel (1 ms, valve open) X {:.0} Y {:.0} mm/s2 (at {:.4} s, {:.4} s)",
+        "{name}: {:?} {:?} after {:.2} s, {} boundaries, worst {:.4} mm, section {:.5}..{:.5} over {} cycles (worst at {:?}), off-path {:.4} mm3, slivers {}, switches {}, peak accel {:.0} mm/s2, step error {:.3}; over 0.2 mm: section {:.4}..{:.4} (worst at {:?}), away from turns {:.4}..{:.4} (at {:?}); axis accel (1 ms, valve open) X {:.0} Y {:.0} mm/s2 (at {:.4} s, {:.4} s)",
         r.state,
         r.fault,
         r.time_s,
@@ -100,6 +100,9 @@ pub fn summary(name: &str, r: &RunResult) {
         m.section_long_range.0,
         m.section_long_range.1,
         m.section_long_worst_at,
+        m.section_straight_range.0,
+        m.section_straight_range.1,
+        m.section_straight_worst_at,
         r.axis_accel[0],
         r.axis_accel[1],
         r.axis_accel_at[0],

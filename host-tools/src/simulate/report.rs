@@ -65,6 +65,13 @@ pub fn report_text(
         dollop::config::SECTION_WINDOW_MM,
         bound * 100.0
     ));
+    s.push_str(&format!(
+        "away from turns   {:.4} .. {:.4} of S over every {} mm of bead whose heading turns under {} deg\n",
+        m.section_straight_range.0,
+        m.section_straight_range.1,
+        dollop::config::SECTION_WINDOW_MM,
+        dollop_sim::metrics::STRAIGHT_DEG
+    ));
     let (b, bl) = (m.section_band(false), m.section_band(true));
     s.push_str(&format!(
         "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} over 0.2 mm\n",
@@ -143,14 +150,16 @@ pub fn warnings(r: &RunResult, config: &Config, bounds: &Bounds) -> Vec<String> 
     let mut w = Vec::new();
     let m = &r.metrics;
     let bound = bounds.section;
-    let off = m.worst_section_long();
+    // The bound holds away from turns (issue 22's measure); through a turn the head may
+    // have to trade the section for the acceleration limit, which the line above shows.
+    let off = m.worst_section_straight();
     if off > bound {
         w.push(format!(
-            "the bead section leaves its bound: {:.2} % off over {} mm of bead (at x {:.2}, y {:.2} mm), bound {:.2} %",
+            "the bead section leaves its bound: {:.2} % off over {} mm of straight bead (at x {:.2}, y {:.2} mm), bound {:.2} %",
             off * 100.0,
             dollop::config::SECTION_WINDOW_MM,
-            m.section_long_worst_at[0],
-            m.section_long_worst_at[1],
+            m.section_straight_worst_at[0],
+            m.section_straight_worst_at[1],
             bound * 100.0
         ));
     }
