@@ -480,9 +480,9 @@ fn printed_mm(commands: &[Command]) -> [f64; 2] {
 /// different sections; each is laid at their mean (job format 2 has one section per
 /// bead), and that spread is printed as a figure, not checked. The perimeters must be
 /// laid at their width's section, and Cura's ball must be printed in material 1.
-/// PrusaSlicer 2.5 prints the ball, which it clips by the shell around it, on no layer at
-/// this scale (and on 2 of 33 at full size): its two runs have no material change, which
-/// the test prints.
+/// PrusaSlicer 2.5 prints the ball enclosed in the shell on no layer at this scale (on 2
+/// of 33 at full size; the ball alone slices whole): its two runs have no material
+/// change, which the test prints.
 #[test]
 fn the_cube_shell_and_ball_run_against_the_plant() {
     let dir = tempfile::tempdir().unwrap();
