@@ -262,25 +262,44 @@ fn cura(dir: &Path, res: &Path, name: &str, volumes: &Volumes) -> String {
     std::fs::read_to_string(out).unwrap()
 }
 
-/// Imports `gcode`, runs it both ways, prints the figures and checks the bounds;
-/// `section(w)`: the section the slicer's flow model gives a bead `w` mm wide; a bead
-/// must be laid at each of `widths`'.
-fn check(label: &str, gcode: &str, section: fn(f64) -> f64, widths: &[f64]) {
+/// The example config with the section these prints are checked against, validated.
+fn config() -> (
+    dollop::config::Config,
+    dollop::Machine<f64, { slicer::INLETS }>,
+) {
     let mut config = example_config().unwrap();
     config.channel.bead_area_mm2 = Some(CONFIG_MM2);
     let machine = slicer::validate(Path::new("example"), &config).unwrap();
+    (config, machine)
+}
+
+/// Simulated print time after which a run is given up as stuck, s: twenty times the
+/// longest print here.
+const MAX_TIME_S: f64 = 20_000.0;
+
+/// Imports `gcode`, runs it against the reference plant and as written, prints the
+/// figures and checks the bounds that hold for any slicer's print: at most `BOUND_MM` of
+/// the wrong material at every bead start and in-bead boundary, the plant's section within
+/// `SECTION` of each bead's own over 0.2 mm, every material change where the import says,
+/// and the G-code as written no better. Returns the import.
+fn run_both(label: &str, gcode: &str) -> gcode_in::Imported {
+    let (config, machine) = config();
     let imported =
         gcode_in::import_text(gcode, label, &ImportOptions::default(), &config, &machine)
             .unwrap_or_else(|e| panic!("{label}: {e}"));
     let s = &imported.sliced;
-    assert!(imported.summary.body.switches >= 1, "{label}: one material");
     assert_eq!(imported.summary.counts.purge.blocks, 0);
     let job = dollop_sim::Job {
         start_um: s.header.start_um,
         initial_material: s.header.initial_material,
         commands: s.commands.clone(),
     };
-    let r = dollop_sim::run::<f32>(&config, &job, &Default::default(), |_| {}).unwrap();
+    let opts = dollop_sim::RunOptions {
+        max_time_s: MAX_TIME_S,
+        ..Default::default()
+    };
+    let r = dollop_sim::run::<f32>(&config, &job, &opts, |_| {})
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
     assert!(r.fault.is_none(), "{label}: {:?}", r.fault);
     let m = &r.metrics;
     // Bead starts where the material differs from the bead before's: the changes.
@@ -326,25 +345,18 @@ fn check(label: &str, gcode: &str, section: fn(f64) -> f64, widths: &[f64]) {
     );
     assert!(worst_start <= BOUND_MM, "{label}: {worst_start} mm");
     assert!(m.worst_boundary() <= BOUND_MM, "{label}");
-    assert!(v.worst_mm > worst_change, "{label}: as written no worse?");
-    // The sections: both widths carried, each bead's moves near the section it is laid
-    // at, none laid at another (under the config's), and the plant's section near each
-    // bead's own.
+    if !changes.is_empty() {
+        assert!(v.worst_mm > worst_change, "{label}: as written no worse?");
+    }
     let st = &imported.summary.sections;
-    let laid: Vec<f64> = s
-        .commands
-        .iter()
-        .filter_map(|c| match c {
-            Command::Section { um2 } => Some(*um2 as f64 * 1e-6),
-            _ => None,
-        })
-        .collect();
     println!(
-        "{label}: sections written {laid:.4?}; asked {:.4} .. {:.4} mm^2, {} mixed bead(s) over {:.0} mm, worst move {:.2} % from its bead's; plant over 0.2 mm {:.4} .. {:.4} of each bead's S",
+        "{label}: asked {:.4} .. {:.4} mm^2 in {} Section commands, {} mixed bead(s) over {:.0} of {:.0} mm, worst move {:.2} % from its bead's; plant over 0.2 mm {:.4} .. {:.4} of each bead's S",
         st.asked_mm2.0,
         st.asked_mm2.1,
+        st.commands,
         st.mixed_beads,
         st.mixed_mm,
+        st.total_mm,
         st.worst_dev * 100.0,
         m.section_long_range.0,
         m.section_long_range.1,
@@ -353,15 +365,6 @@ fn check(label: &str, gcode: &str, section: fn(f64) -> f64, widths: &[f64]) {
         s.header.format_version,
         dollop::job::FORMAT_VERSION_SECTIONS
     );
-    for &w in widths {
-        let want = section(w);
-        assert!(
-            laid.iter().any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
-            "{label}: no bead at the {w} mm width's {want:.4} mm^2"
-        );
-    }
-    assert!(st.worst_dev <= SECTION, "{label}: {}", st.worst_dev);
-    assert_eq!((st.below_mm, st.above_mm), (0.0, 0.0), "{label}");
     let (lo, hi) = m.section_long_range;
     assert!(
         lo >= 1.0 - SECTION && hi <= 1.0 + SECTION,
@@ -372,6 +375,41 @@ fn check(label: &str, gcode: &str, section: fn(f64) -> f64, widths: &[f64]) {
         .commands
         .iter()
         .all(|c| !matches!(c, Command::Print { material, .. } if *material > 1)));
+    imported
+}
+
+/// The sections written into a job, mm^2.
+fn laid(imported: &gcode_in::Imported) -> Vec<f64> {
+    imported
+        .sliced
+        .commands
+        .iter()
+        .filter_map(|c| match c {
+            Command::Section { um2 } => Some(*um2 as f64 * 1e-6),
+            _ => None,
+        })
+        .collect()
+}
+
+/// `run_both`, then the sections: `section(w)` is the section the slicer's flow model
+/// gives a bead `w` mm wide; a bead must be laid at each of `widths`', no bead's moves
+/// may ask more than `SECTION` from the section it is laid at, none is laid at another
+/// (under the config's).
+fn check(label: &str, gcode: &str, section: fn(f64) -> f64, widths: &[f64]) {
+    let imported = run_both(label, gcode);
+    assert!(imported.summary.body.switches >= 1, "{label}: one material");
+    let st = &imported.summary.sections;
+    let laid = laid(&imported);
+    println!("{label}: sections written {laid:.4?}");
+    for &w in widths {
+        let want = section(w);
+        assert!(
+            laid.iter().any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
+            "{label}: no bead at the {w} mm width's {want:.4} mm^2"
+        );
+    }
+    assert!(st.worst_dev <= SECTION, "{label}: {}", st.worst_dev);
+    assert_eq!((st.below_mm, st.above_mm), (0.0, 0.0), "{label}");
 }
 
 /// PrusaSlicer's flow model (Slic3r's): a rectangle with round sides.
@@ -419,26 +457,43 @@ fn prusaslicer_and_cura_multi_material_gcode_lands_each_region_in_its_material()
     }
 }
 
-/// The bundled cube shell + ball (`host-tools/designs/`, 33 layers): sliced by both (and
-/// by PrusaSlicer with its classic perimeters besides its default, Arachne's), its import's
-/// sections measured and printed (not simulated: about 20 m of bead, too long for CI's
-/// budget), the perimeters laid at their width's section. Where a bead's moves ask
-/// different sections (Arachne's variable-width perimeters above all) the bead is laid at
-/// their mean: the summary counts them, `docs/limits.md` gives the figures.
+/// The bundled cube shell + ball is scaled by this for its run against the plant (10 mm,
+/// 17 layers, about 2.4 m of bead per slicer, where the full 20 mm cube has about 20 m).
+const CUBE_SCALE: f64 = 0.5;
+
+/// Length printed in each material, mm.
+fn printed_mm(commands: &[Command]) -> [f64; 2] {
+    let mut mm = [0.0; 2];
+    for c in commands {
+        if let Command::Print { dx, dy, material } = c {
+            mm[(*material).min(1) as usize] += (*dx as f64).hypot(*dy as f64) * 1e-3;
+        }
+    }
+    mm
+}
+
+/// The bundled cube shell + ball (`host-tools/designs/`), scaled by `CUBE_SCALE` (the
+/// ball stays inside the shell), sliced by both slicers (PrusaSlicer with its default
+/// Arachne perimeters and with classic ones) and run against the reference plant: the
+/// wrong material at each change and the plant's section against each bead's own are
+/// `run_both`'s bounds. Arachne's variable-width perimeters make beads whose moves ask
+/// different sections; each is laid at their mean (job format 2 has one section per
+/// bead), and that spread is printed as a figure, not checked. The perimeters must be
+/// laid at their width's section, and Cura's ball must be printed in material 1.
+/// PrusaSlicer 2.5 prints the ball enclosed in the shell on no layer at this scale (on 2
+/// of 33 at full size; the ball alone slices whole): its two runs have no material
+/// change, which the test prints.
 #[test]
-fn the_cube_shell_and_ball_beads_keep_their_sections() {
+fn the_cube_shell_and_ball_run_against_the_plant() {
     let dir = tempfile::tempdir().unwrap();
     let designs = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
     let mut volumes = Volumes::new();
     for (file, m) in [("cube-shell.stl", 0u8), ("cube-ball.stl", 1)] {
         let mesh = slicer::mesh::read_stl(&designs.join(file)).unwrap();
-        let v = |i: u32| mesh.vertices[i as usize].map(|c| c as f64);
+        let v = |i: u32| mesh.vertices[i as usize].map(|c| c as f64 * CUBE_SCALE);
         let tris = mesh.triangles.iter().map(|t| [v(t[0]), v(t[1]), v(t[2])]);
         volumes.push((tris.collect(), m));
     }
-    let mut config = example_config().unwrap();
-    config.channel.bead_area_mm2 = Some(CONFIG_MM2);
-    let machine = slicer::validate(Path::new("example"), &config).unwrap();
     let mut gcodes = Vec::new();
     if have("prusa-slicer") {
         gcodes.push((
@@ -461,31 +516,31 @@ fn the_cube_shell_and_ball_beads_keep_their_sections() {
         }
     }
     for (label, gcode) in gcodes {
-        let i = gcode_in::import_text(&gcode, label, &ImportOptions::default(), &config, &machine)
-            .unwrap_or_else(|e| panic!("{label}: {e}"));
-        let st = &i.summary.sections;
+        let t0 = std::time::Instant::now();
+        let i = run_both(label, &gcode);
+        let mm = printed_mm(&i.sliced.commands);
         println!(
-            "{label}: {} beads, {} Section commands, asked {:.4} .. {:.4} mm^2; {} mixed bead(s) over {:.0} of {:.0} mm, worst move {:.2} % from its bead's; {:.0} mm under the config's",
+            "{label}: {} beads, {:.0} mm in material 0, {:.0} mm in material 1, run in {:.1} s",
             i.summary.body.beads,
-            st.commands,
-            st.asked_mm2.0,
-            st.asked_mm2.1,
-            st.mixed_beads,
-            st.mixed_mm,
-            st.total_mm,
-            st.worst_dev * 100.0,
-            st.below_mm,
+            mm[0],
+            mm[1],
+            t0.elapsed().as_secs_f64()
         );
-        assert!(i.summary.body.switches >= 2, "{label}");
+        let cura = label.starts_with("Cura");
+        if cura {
+            assert!(i.summary.body.switches >= 2, "{label}");
+            assert!(mm[1] > 0.05 * mm[0], "{label}: no ball? {mm:?}");
+        }
         // The perimeters are laid at their width's section.
-        let want = if label.starts_with("Cura") {
+        let want = if cura {
             cura_section(PERIMETER_MM)
         } else {
             slic3r_section(PERIMETER_MM)
         };
         assert!(
-            i.sliced.commands.iter().any(|c| matches!(c,
-                Command::Section { um2 } if (*um2 as f64 * 1e-6 / want - 1.0).abs() <= SECTION / 2.0)),
+            laid(&i)
+                .iter()
+                .any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
             "{label}: no bead at {want:.4} mm^2"
         );
     }

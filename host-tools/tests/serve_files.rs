@@ -616,3 +616,129 @@ async fn cura_s_octoprint_plugin_connects_prints_pauses_and_jogs() {
     .await
     .expect("Cura's requests");
 }
+
+/// Waits up to a minute for board `i`'s view to satisfy `ok`.
+fn wait_board(
+    st: &serve::state::AppState,
+    i: usize,
+    what: &str,
+    ok: impl Fn(&serve::view::View) -> bool,
+) -> serve::view::View {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let v = st.boards[i].view.borrow().clone();
+        if ok(&v) {
+            return v;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "board {i}: {what} never came: {} ({:?})",
+            v.activity,
+            v.message
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+/// G-code from a slicer is imported for the machine it goes to: board 1 given another
+/// config (the Design page's, loaded as it homes) prints an upload into its folder with
+/// that config, not the first one offered; board 0, which has none, gets the first one.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_upload_is_imported_with_the_config_of_the_board_it_goes_to() {
+    let data = tempfile::tempdir().expect("folder");
+    let mut a = args(data.path(), false);
+    a.sim_boards = 2;
+    let r = serve::start(a).await.expect("starts");
+    let (a, st) = (r.addr, r.state.clone());
+    tokio::task::spawn_blocking(move || {
+        let hash = |text: &str| {
+            let c = serve::design::check(text).expect("config").config;
+            dollop::job::config_hash(&c)
+        };
+        let (first, other) = (serve::design::BUNDLED[0].1, serve::design::BUNDLED[1].1);
+        assert_ne!(hash(first), hash(other), "the test needs two machines");
+        for i in 0..2 {
+            wait_board(&st, i, "the link", |v| v.connected);
+        }
+        assert!(st.boards[1].config.get().is_none());
+        let home = serde_json::json!({ "tab": "t", "config": other }).to_string();
+        let (code, resp) = request(
+            a,
+            "POST",
+            "/api/boards/1/home",
+            &[AUTH, "Content-Type: application/json"],
+            home.as_bytes(),
+        );
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&resp));
+        let loaded = st.boards[1].config.get().expect("board 1's config");
+        assert_eq!(dollop::job::config_hash(&loaded.config), hash(other));
+        wait_board(&st, 1, "the homing", |v| {
+            v.homed && v.mode == Some(dollop::wire::Mode::Idle)
+        });
+
+        // Printed on each board through its folder (by name, then none: board 0).
+        let name1 = st.boards[1].view.borrow().name.clone();
+        for (board, folder, want) in [(1, name1.as_str(), other), (0, "", first)] {
+            let (ct, body) = multipart(&[
+                ("path", None, folder.as_bytes()),
+                ("print", None, b"true"),
+                ("file", Some("square.gcode"), SQUARE.as_bytes()),
+            ]);
+            let (code, resp) = request(a, "POST", "/api/files/local", &[AUTH, &ct], &body);
+            assert_eq!(code, 201, "{}", String::from_utf8_lossy(&resp));
+            let v = wait_board(&st, board, "the job", |v| v.job.is_some());
+            let job = st.job(v.job.expect("a job").job).expect("kept");
+            assert_eq!(
+                dollop::job::config_hash(&job.config),
+                hash(want),
+                "board {board}: imported with another config"
+            );
+        }
+    })
+    .await
+    .expect("uploads");
+}
+
+/// `POST /api/login` as Cura's OctoPrint plugin sends it (`{"passive": true}` with its
+/// key), and with a user and password: OctoPrint's answers (the `_api` user; 403 for a
+/// wrong password; 400 for neither), and the key checked as everywhere (401 without it or
+/// with a wrong one, which Cura shows as "Unknown user").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_login_cura_sends_is_answered_for_the_right_key_only() {
+    let data = tempfile::tempdir().expect("folder");
+    let r = serve::start(args(data.path(), false))
+        .await
+        .expect("starts");
+    let a = r.addr;
+    tokio::task::spawn_blocking(move || {
+        let json_ct = "Content-Type: application/json";
+        let login = |key: Option<&str>, body: &str| {
+            let k = key.map(|k| format!("X-Api-Key: {k}"));
+            let mut h = vec![json_ct];
+            if let Some(k) = &k {
+                h.push(k);
+            }
+            request_full(a, "POST", "/api/login", &h, body.as_bytes())
+        };
+        let passive = r#"{"passive": true}"#;
+        let (code, _, body) = login(Some(KEY), passive);
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&body));
+        let u = json(&body);
+        assert_eq!(u["name"], "_api", "{u}");
+        assert_eq!(u["active"], true, "{u}");
+        for bad in [Some("wrong horse"), None] {
+            let (code, _, body) = login(bad, passive);
+            assert_eq!(code, 401, "{bad:?}: {}", String::from_utf8_lossy(&body));
+        }
+        let (code, head, body) = login(Some(KEY), r#"{"user": "lab", "pass": "wrong"}"#);
+        assert_eq!(code, 403, "{}", String::from_utf8_lossy(&body));
+        assert!(head.contains("content-type: text/plain\r\n"), "{head}");
+        let (code, _, body) = login(Some(KEY), &format!(r#"{{"user": "lab", "pass": "{KEY}"}}"#));
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&body));
+        let (code, _, body) = login(Some(KEY), "{}");
+        assert_eq!(code, 400, "{}", String::from_utf8_lossy(&body));
+        assert!(String::from_utf8_lossy(&body).contains("passive"));
+    })
+    .await
+    .expect("logins");
+}

@@ -61,6 +61,11 @@ impl Auth {
             .any(|t| sessions.iter().any(|s| same(s.as_bytes(), t.as_bytes())))
     }
 
+    /// `key` is the key (a password given in a body, as OctoPrint's login takes it).
+    pub fn is_key(&self, key: &str) -> bool {
+        same(key.as_bytes(), self.key.as_bytes())
+    }
+
     /// Checks a key typed on the form; a new session's token when it is right.
     pub fn sign_in(&self, key: &str) -> Option<String> {
         if !same(key.as_bytes(), self.key.as_bytes()) {

@@ -7,6 +7,7 @@
 //! halt. Each board has its own job queue; a finished print waits for the plate to be
 //! cleared before the next starts.
 
+use super::board_config::LoadedConfig;
 use super::clock::{self, PrintClock};
 use super::controls;
 use super::history::{History, Record};
@@ -156,6 +157,9 @@ pub struct Board {
     pub controller: Mutex<Option<String>>,
     /// Raised by `abort` ahead of its order: an upload under way stops at once.
     cancel: Arc<AtomicBool>,
+    /// The machine config its worker last loaded on it (G-code for this board is
+    /// imported with it).
+    pub config: Arc<LoadedConfig>,
 }
 
 impl Board {
@@ -250,12 +254,14 @@ fn spawn_with(
     };
     let (vtx, vrx) = tokio::sync::watch::channel(view.clone());
     let cancel = Arc::new(AtomicBool::new(false));
+    let loaded = Arc::new(LoadedConfig::default());
     let board = Arc::new(Board {
         id,
         orders: Mutex::new(tx),
         view: vrx,
         controller: Mutex::new(None),
         cancel: cancel.clone(),
+        config: loaded.clone(),
     });
     let spawned = std::thread::Builder::new()
         .name(format!("board-{id}"))
@@ -263,6 +269,7 @@ fn spawn_with(
             let mut w = Worker::new(path, speed, view, vtx, cancel);
             w.frame_delay = frame_delay;
             w.history = history;
+            w.loaded = loaded;
             w.run(rx)
         });
     if let Err(e) = spawned {
@@ -311,6 +318,8 @@ struct Worker {
     start_when_free: bool,
     /// Where an ended print is recorded (none: not recorded; unit tests).
     history: Option<Arc<History>>,
+    /// The config last loaded on the board, shared with its `Board`.
+    loaded: Arc<LoadedConfig>,
 }
 
 /// Still on its way: a job runs (or is paused) on the board.
@@ -433,6 +442,7 @@ impl Worker {
             message_at: None,
             start_when_free: false,
             history: None,
+            loaded: Arc::default(),
         }
     }
 
@@ -830,6 +840,7 @@ impl Worker {
         };
         c.command(&Request::LoadConfig(cfg.clone()))
             .map_err(|e| format!("loading the config: {e}"))?;
+        self.loaded.set(&cfg, None);
         self.couple_plant(&cfg, 0)
     }
 
@@ -894,6 +905,8 @@ impl Worker {
             self.couple_plant(&entry.config, entry.sliced.header.initial_material)
                 .map_err(LinkError::Protocol)?;
         }
+        // Loaded now, or already there: the board's config either way.
+        self.loaded.set(&entry.config, Some(&entry.config_text));
         let Some(c) = self.client.as_mut() else {
             return Err(LinkError::Disconnected);
         };

@@ -7,6 +7,7 @@
 
 pub mod assets;
 pub mod auth;
+pub mod board_config;
 pub mod boards;
 pub mod calibrate;
 pub mod clock;
@@ -22,6 +23,7 @@ pub mod lock;
 pub mod octoprint;
 pub mod octoprint_common;
 pub mod octoprint_control;
+pub mod octoprint_login;
 pub mod paced_board;
 pub mod reply;
 pub mod routes;

@@ -1,13 +1,16 @@
 //! The subset of OctoPrint's REST API that slicers' "send to printer" speaks
 //! (PrusaSlicer's OctoPrint host, Cura's OctoPrint plugin, client libraries such as
 //! octorest): `GET /api/version` and `/api/server` (what they probe first), `/api/settings`,
-//! `/api/printerprofiles`, `/api/printer` and `/api/job` (what Cura polls),
+//! `/api/printerprofiles`, `/api/printer` and `/api/job` (what Cura polls), `POST
+//! /api/login` (Cura asks whose key it holds; `octoprint_login`),
 //! `GET /api/files[/local[/NAME]]`, and `POST /api/files/local` multipart with `file`,
 //! `path`, `select`, `print`. An upload is checked and kept as the Files page's are
-//! (`files::take_upload`: G-code imported with the default config, a `.dlp` decoded and
-//! matched to its config) and, with `print=true`, queued on a board (it starts when the
-//! board is free): the one the upload's folder (`path`) names, by name or number, else
-//! board 0; a folder is otherwise ignored (files all go to one). The status answers are
+//! (`files::take_upload`: G-code imported with the config of the board it goes to, a
+//! `.dlp` decoded and matched to its config) and, with `print=true`, queued on a board (it
+//! starts when the board is free): the one the upload's folder (`path`) names, by name or
+//! number, else board 0; a folder is otherwise ignored (files all go to one). The board's
+//! config is the one this dashboard last loaded on it (`board_config`), else the first
+//! offered. The status answers are
 //! board 0's (an OctoPrint instance has one printer). The key is checked by `gate`
 //! (`X-Api-Key` against `--auth`). Every refusal is plain text (`Plain`), the one error
 //! body both slicers show as it is. The commands (job, file select, jog and home) are in
@@ -39,6 +42,10 @@ pub fn routes() -> Router<Arc<AppState>> {
         .route("/api/version", get(version))
         .route("/api/server", get(server))
         .route("/api/settings", get(settings))
+        .route(
+            "/api/login",
+            axum::routing::post(super::octoprint_login::login),
+        )
         .route("/api/printerprofiles", get(printer_profiles))
         .route("/api/printer", get(printer))
         .route("/api/job", get(job).post(super::octoprint_control::job))
@@ -236,9 +243,17 @@ async fn upload(State(st): St, mut mp: Multipart) -> OpResult<Response> {
     } else {
         None
     };
+    // Imported for the machine it goes to: the board printing it, else the one the
+    // folder names, else board 0; the first config offered when that board has none.
+    let config = board
+        .clone()
+        .or_else(|| board_for(&st, &folder).ok())
+        .or_else(|| board_for(&st, "").ok())
+        .and_then(|b| b.config.get())
+        .map(|k| k.text);
     let st2 = st.clone();
     let shown = name.clone();
-    let taken = blocking(move || super::files::take_upload(&st2, &name, bytes, None)).await;
+    let taken = blocking(move || super::files::take_upload(&st2, &name, bytes, config)).await;
     let (kept, job) = match taken {
         Ok(t) => t,
         Err(e) => {

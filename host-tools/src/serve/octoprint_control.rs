@@ -145,10 +145,12 @@ pub async fn file_command(
         return Ok(StatusCode::NO_CONTENT);
     }
     let board = first_board(&st)?;
+    // Imported again for the board it prints on.
+    let config = board.config.get().map(|k| k.text);
     let st2 = st.clone();
     let name2 = name.clone();
     let job = blocking(move || {
-        super::files::job_from_file(&st2, &name2, bytes, None, &SliceForm::default())
+        super::files::job_from_file(&st2, &name2, bytes, config, &SliceForm::default())
     })
     .await?;
     send(&st, &board, job, &name).await?;
