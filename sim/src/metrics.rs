@@ -454,95 +454,23 @@ impl Meter {
         self.recent.clear();
         let design = &self.beads[bi];
         let first = design.runs[0].1;
+        let end = trace.s + trace.extra;
         if let Some(&(s0, _)) = trace.landed.first() {
             let right = trace
                 .landed
                 .iter()
                 .find(|r| r.1 == first)
-                .map_or(trace.s + trace.extra, |r| r.0);
+                .map_or(end, |r| r.0);
             self.metrics.bead_starts.push((bi, right - s0));
         }
-        // A bead that starts in another material than the design's (its change fell
-        // across the travel before it, the channel still holding the last bead's paste)
-        // has its boundary at its start: measured as one, the rest compared as usual.
-        let mut landed = trace.landed.clone();
-        let mut start_boundary = None;
-        if let (Some(&(s0, m0)), Some(k)) =
-            (landed.first(), landed.iter().position(|r| r.1 == first))
-        {
-            if m0 != first && landed[k].0 - s0 >= SLIVER_MM {
-                start_boundary = Some(Boundary {
-                    bead: bi,
-                    point: design.runs[0].0,
-                    material: first,
-                    s_design: s0,
-                    s_landed: landed[k].0,
-                });
-                landed.drain(..k);
-            }
-        }
-        // Merge slivers.
-        let mut runs: Vec<(f64, u8)> = Vec::new();
-        for (k, &(s, m)) in landed.iter().enumerate() {
-            let next_s = landed
-                .get(k + 1)
-                .map(|r| r.0)
-                .unwrap_or(trace.s + trace.extra);
-            if next_s - s < SLIVER_MM && (k > 0 || landed.len() > 1) {
-                self.metrics.slivers += 1;
-                continue;
-            }
-            if runs.last().map(|r| r.1) == Some(m) {
-                continue;
-            }
-            runs.push((s, m));
-        }
+        let (landed, start_boundary) = start_boundary(bi, design, &trace.landed);
+        let (runs, slivers) = merge_slivers(&landed, end);
+        self.metrics.slivers += slivers;
         let materials_landed: Vec<u8> = runs.iter().map(|r| r.1).collect();
         let materials_design: Vec<u8> = design.runs.iter().map(|r| r.1).collect();
         if materials_landed != materials_design {
-            let first = materials_landed
-                .iter()
-                .zip(&materials_design)
-                .position(|(a, b)| a != b)
-                .unwrap_or(materials_landed.len().min(materials_design.len()));
-            let lo = first.saturating_sub(2);
-            // Alternating sequences hide where they part: name the shortest landed runs,
-            // the likely blips.
-            let mut short: Vec<(f64, f64, u8)> = runs
-                .iter()
-                .enumerate()
-                .map(|(k, r)| {
-                    let end = runs
-                        .get(k + 1)
-                        .map(|n| n.0)
-                        .unwrap_or(trace.s + trace.extra);
-                    (end - r.0, r.0, r.1)
-                })
-                .collect();
-            short.sort_by(|a, b| a.0.total_cmp(&b.0));
-            short.truncate(3);
-            self.metrics.mismatches.push(format!(
-                "bead {bi} (commands {}..={}): {} design runs, {} landed; first difference at run {first}: design {:?}, landed {:?}; shortest landed runs (length, s, material) {:?}",
-                design.commands.0,
-                design.commands.1,
-                materials_design.len(),
-                materials_landed.len(),
-                &design.runs[lo..(first + 3).min(design.runs.len())],
-                &runs[lo..(first + 3).min(runs.len())],
-                short,
-            ));
-            return;
-        }
-        if materials_landed != materials_design {
-            self.metrics.mismatches.push(format!(
-                "bead {bi} (commands {}..={}): design runs {:?} at {:?}, landed {:?} at s {:?}",
-                design.commands.0,
-                design.commands.1,
-                materials_design,
-                design.runs.iter().map(|r| r.0).collect::<Vec<_>>(),
-                materials_landed,
-                runs.iter().map(|r| r.0).collect::<Vec<_>>()
-            ));
+            let m = mismatch(bi, design, &runs, end);
+            self.metrics.mismatches.push(m);
             return;
         }
         self.metrics.boundaries.extend(start_boundary);
@@ -559,6 +487,87 @@ impl Meter {
             });
         }
     }
+}
+
+/// A bead that starts in another material than the design's (its change fell across the
+/// travel before it, the channel still holding the last bead's paste) has its boundary
+/// at its start: that boundary, and what landed from it on (else all of `landed`, and
+/// none), to compare as usual.
+fn start_boundary(
+    bi: usize,
+    design: &DesignBead,
+    landed: &[(f64, u8)],
+) -> (Vec<(f64, u8)>, Option<Boundary>) {
+    let first = design.runs[0].1;
+    let mut landed = landed.to_vec();
+    let mut start_boundary = None;
+    if let (Some(&(s0, m0)), Some(k)) = (landed.first(), landed.iter().position(|r| r.1 == first)) {
+        if m0 != first && landed[k].0 - s0 >= SLIVER_MM {
+            start_boundary = Some(Boundary {
+                bead: bi,
+                point: design.runs[0].0,
+                material: first,
+                s_design: s0,
+                s_landed: landed[k].0,
+            });
+            landed.drain(..k);
+        }
+    }
+    (landed, start_boundary)
+}
+
+/// The runs of `landed` (a bead ending at `end` along the path) with the slivers merged
+/// into their neighbours, and how many slivers there were.
+fn merge_slivers(landed: &[(f64, u8)], end: f64) -> (Vec<(f64, u8)>, u64) {
+    let mut slivers = 0;
+    let mut runs: Vec<(f64, u8)> = Vec::new();
+    for (k, &(s, m)) in landed.iter().enumerate() {
+        let next_s = landed.get(k + 1).map(|r| r.0).unwrap_or(end);
+        if next_s - s < SLIVER_MM && (k > 0 || landed.len() > 1) {
+            slivers += 1;
+            continue;
+        }
+        if runs.last().map(|r| r.1) == Some(m) {
+            continue;
+        }
+        runs.push((s, m));
+    }
+    (runs, slivers)
+}
+
+/// What tells a person where bead `bi`'s landed material `runs` (the bead ending at `end`)
+/// part from its design's.
+fn mismatch(bi: usize, design: &DesignBead, runs: &[(f64, u8)], end: f64) -> String {
+    let materials_landed: Vec<u8> = runs.iter().map(|r| r.1).collect();
+    let materials_design: Vec<u8> = design.runs.iter().map(|r| r.1).collect();
+    let first = materials_landed
+        .iter()
+        .zip(&materials_design)
+        .position(|(a, b)| a != b)
+        .unwrap_or(materials_landed.len().min(materials_design.len()));
+    let lo = first.saturating_sub(2);
+    // Alternating sequences hide where they part: name the shortest landed runs, the
+    // likely blips.
+    let mut short: Vec<(f64, f64, u8)> = runs
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let next = runs.get(k + 1).map(|n| n.0).unwrap_or(end);
+            (next - r.0, r.0, r.1)
+        })
+        .collect();
+    short.sort_by(|a, b| a.0.total_cmp(&b.0));
+    short.truncate(3);
+    format!(
+        "bead {bi} (commands {}..={}): {} design runs, {} landed; first difference at run {first}: design {:?}, landed {:?}; shortest landed runs (length, s, material) {:?}",
+        design.commands.0,
+        design.commands.1,
+        materials_design.len(),
+        materials_landed.len(),
+        &design.runs[lo..(first + 3).min(design.runs.len())],
+        &runs[lo..(first + 3).min(runs.len())],
+        short,
+    )
 }
 
 /// How close the executed path must pass a design point to be taken as passing it: corner

@@ -153,118 +153,178 @@ pub fn run_paused<R: Real>(
     pauses: &PausePlan,
     mut observe: impl FnMut(&Cycle<'_, R>),
 ) -> Result<RunResult, SimError> {
-    let mut machine = config
-        .validate::<R, { dollop::DEFAULT_INLETS }>()
-        .map_err(SimError::Config)?;
-    if !opts.head_ramps {
-        machine.ramp_cycles = 1;
-    }
-    let period_us = machine.period_us as u64;
-    let dt = period_us as f64 * 1e-6;
-    let spm: [f64; 3] = [
-        machine.motion.steps_per_mm[0].to_f64(),
-        machine.motion.steps_per_mm[1].to_f64(),
-        machine.motion.steps_per_mm[2].to_f64(),
-    ];
-    let bead_area = machine.bead_area.to_f64();
-    let mut pauser = Pauser::new(pauses, bead_area, machine.q_stop.to_f64() / bead_area);
-    let mut exec: Executor<R> = Executor::new(machine);
-    exec.begin(job.start_um, job.initial_material)
-        .map_err(SimError::Begin)?;
-    let mut plant = if opts.plant {
-        Some(Plant::new(plant_config, job.initial_material).map_err(SimError::Config)?)
-    } else {
-        None
-    };
-    let mut meter = Meter::new(&job.commands, job.start_um, bead_area);
-    let mut out = RecordingOutputs::default();
-    // The recording counts steps from zero; the executor's step positions are absolute.
-    let mut origin = [0i64; 3];
-    for a in 0..3 {
-        origin[a] = (job.start_um[a] as f64 * 1e-3 * spm[a]).round() as i64;
-    }
-    let mut next_cmd = 0usize;
-    let mut cycle: u64 = 0;
-    let mut valves_prev = 0u32;
-    let mut switches = 0u64;
-    let mut last_opened: Option<u8> = None;
-    let mut worst_step_error = 0.0f64;
-    // Step rate over windows of RATE_WINDOW cycles: a per-cycle count of 1 would read as
-    // 10 000 steps/s at 10 kHz however slowly the axis moves.
-    let mut rate_base = [0u64; 3];
-    let mut peak_rate = [0.0f64; 3];
-
-    let mut peak_accel = 0.0f64;
-    let mut axis_accel = AxisAccel::new(dt);
-    let mut hist: [[f64; 3]; 3] = [[f64::NAN; 3]; 3];
-    let mut max_slugs = 0u8;
-    let mut landing_prev = job.initial_material;
+    let mut run = Runner::new(config, plant_config, job, opts, pauses)?;
     // Saturates to u64::MAX for an infinite limit (and to 0 for a NaN one).
-    let max_cycles = (opts.max_time_s / dt) as u64;
-    let mut changes = Vec::new();
-    let mut park_view = ParkView::default();
-    let mut refill = Refill::default();
+    let max_cycles = (opts.max_time_s / run.dt) as u64;
     loop {
-        while next_cmd < job.commands.len() && exec.room() > 0 {
-            match exec.push(job.commands[next_cmd]) {
-                Ok(()) => next_cmd += 1,
+        run.feed();
+        let now = run.cycle * run.period_us;
+        let t = now as f64 * 1e-6;
+        let report = match run.exec.tick(now, &mut run.out) {
+            Ok(r) => r,
+            Err(_) => return Ok(run.faulted(now, t)),
+        };
+        let (landed_volume, landing) = run.land(&report, t);
+        let head = run.meter_cycle(&report, landed_volume, landing);
+        run.valves_changed();
+        run.motion.cycle(run.cycle, &report, &run.out, &head, t);
+        if !pauses.requests.is_empty() {
+            run.steer_pauses(&report, &head, landed_volume, t);
+        }
+        observe(&Cycle {
+            t_s: t,
+            report: &report,
+            outputs: &run.out,
+            landed_volume,
+            landing,
+            plant: run.plant.as_ref(),
+        });
+        run.cycle += 1;
+        if matches!(report.state, RunState::Done | RunState::Aborted) {
+            return Ok(run.finish(report.state, None, t));
+        }
+        if run.cycle > max_cycles {
+            return Err(SimError::Timeout(opts.max_time_s));
+        }
+    }
+}
+
+/// What one run's cycles share: the executor and its outputs, the plant, the meters, and
+/// the figures gathered so far.
+struct Runner<'a, R: Real> {
+    config: &'a Config,
+    job: &'a Job,
+    opts: &'a RunOptions,
+    pauses: &'a PausePlan,
+    exec: Executor<R>,
+    out: RecordingOutputs,
+    plant: Option<Plant>,
+    meter: Meter,
+    pauser: Pauser,
+    park_view: ParkView,
+    refill: Refill,
+    valves: ValveWatch,
+    motion: Motion,
+    period_us: u64,
+    dt: f64,
+    bead_area: f64,
+    /// The next of the job's commands to push.
+    next_cmd: usize,
+    cycle: u64,
+    /// Material landing at the start of the cycle.
+    landing_prev: u8,
+    /// This cycle's material changes as they landed (kept for its allocation).
+    changes: Vec<(f64, u8)>,
+}
+
+/// Where the head is this cycle, as the meters and the pause steering see it.
+struct Head {
+    /// On a bead: laying it, or pausing or paused on it.
+    printing: bool,
+    /// The planned position, mm.
+    raw: [f64; 3],
+    /// Where the meters see the head: the pause point during a park.
+    pos: [f64; 2],
+    /// A park has the head off the pause point.
+    off_point: bool,
+}
+
+impl<'a, R: Real> Runner<'a, R> {
+    /// The executor begun on `job`, the plant (if `opts` asks for it) built from
+    /// `plant_config`, nothing metered yet.
+    fn new(
+        config: &'a Config,
+        plant_config: &Config,
+        job: &'a Job,
+        opts: &'a RunOptions,
+        pauses: &'a PausePlan,
+    ) -> Result<Self, SimError> {
+        let mut machine = config
+            .validate::<R, { dollop::DEFAULT_INLETS }>()
+            .map_err(SimError::Config)?;
+        if !opts.head_ramps {
+            machine.ramp_cycles = 1;
+        }
+        let period_us = machine.period_us as u64;
+        let dt = period_us as f64 * 1e-6;
+        let spm: [f64; 3] = [
+            machine.motion.steps_per_mm[0].to_f64(),
+            machine.motion.steps_per_mm[1].to_f64(),
+            machine.motion.steps_per_mm[2].to_f64(),
+        ];
+        let bead_area = machine.bead_area.to_f64();
+        let pauser = Pauser::new(pauses, bead_area, machine.q_stop.to_f64() / bead_area);
+        let mut exec: Executor<R> = Executor::new(machine);
+        exec.begin(job.start_um, job.initial_material)
+            .map_err(SimError::Begin)?;
+        let plant = if opts.plant {
+            Some(Plant::new(plant_config, job.initial_material).map_err(SimError::Config)?)
+        } else {
+            None
+        };
+        Ok(Runner {
+            config,
+            job,
+            opts,
+            pauses,
+            exec,
+            out: RecordingOutputs::default(),
+            plant,
+            meter: Meter::new(&job.commands, job.start_um, bead_area),
+            pauser,
+            park_view: ParkView::default(),
+            refill: Refill::default(),
+            valves: ValveWatch::default(),
+            motion: Motion::new(dt, spm, job.start_um),
+            period_us,
+            dt,
+            bead_area,
+            next_cmd: 0,
+            cycle: 0,
+            landing_prev: job.initial_material,
+            changes: Vec::new(),
+        })
+    }
+
+    /// Pushes the job's next commands while the executor has room; a rejected one ends
+    /// the feeding (the executor faults on it).
+    fn feed(&mut self) {
+        let commands = &self.job.commands;
+        while self.next_cmd < commands.len() && self.exec.room() > 0 {
+            match self.exec.push(commands[self.next_cmd]) {
+                Ok(()) => self.next_cmd += 1,
                 Err(PushError::Full) => break,
                 Err(PushError::Rejected(_)) => {
-                    next_cmd = job.commands.len();
+                    self.next_cmd = commands.len();
                     break;
                 }
             }
         }
-        let now = cycle * period_us;
-        let t = now as f64 * 1e-6;
-        let result = exec.tick(now, &mut out);
-        let report = match result {
-            Ok(r) => r,
-            Err(_) => {
-                // Fault: the outputs are already safe; report once more for the record.
-                let r = exec.tick(now + period_us, &mut out).err();
-                let fault = exec.fault_cause().or(r);
-                if let Some(p) = plant.as_mut() {
-                    for i in 0..config.inlets.len() {
-                        p.command(i, out.valves & (1 << i) != 0);
-                    }
-                }
-                let mut r = axis_accel.into(finish(
-                    exec.state(),
-                    fault,
-                    t,
-                    cycle,
-                    out,
-                    meter.finish(),
-                    switches,
-                    peak_rate,
-                    period_us,
-                    worst_step_error,
-                    peak_accel,
-                    max_slugs,
-                    bead_area,
-                    job,
-                ));
-                r.pauses = pauser.finish();
-                return Ok(r);
-            }
-        };
-        // What landed during the cycle that just ended.
-        changes.clear();
-        let (landed_volume, landing) = match plant.as_mut() {
+    }
+
+    /// What landed during the cycle that just ended (from the plant, else the
+    /// executor's model): its volume, the material landing at its end, and each change
+    /// of material into `changes`.
+    fn land(&mut self, report: &Report<R>, t: f64) -> (f64, u8) {
+        self.changes.clear();
+        match self.plant.as_mut() {
             Some(p) => {
-                let l = p.advance(t, opts.plant_step_s);
-                changes.extend_from_slice(&l.changes);
+                let l = p.advance(t, self.opts.plant_step_s);
+                self.changes.extend_from_slice(&l.changes);
                 (l.volume, l.material)
             }
             None => {
                 let m = report.landing;
-                if m != landing_prev {
-                    changes.push((report.dv.mm3::<f64>(), m));
+                if m != self.landing_prev {
+                    self.changes.push((report.dv.mm3::<f64>(), m));
                 }
                 (report.dv.mm3::<f64>(), m)
             }
-        };
+        }
+    }
+
+    /// Meters the cycle and says where the head is.
+    fn meter_cycle(&mut self, report: &Report<R>, landed_volume: f64, landing: u8) -> Head {
         // A pause's tail and what trickles while paused land on the bead, the head
         // standing or creeping: counted as printing, so a blob at the seam shows.
         let printing = matches!(
@@ -278,129 +338,217 @@ pub fn run_paused<R: Real>(
             report.position[2].to_f64(),
         ];
         // A park's excursion is no path: the meters see the head stay on the pause point.
-        let off_point = park_view.cycle(exec.parked_off_point(), raw);
-        let pos = [park_view.point[0], park_view.point[1]];
-        meter.cycle(CycleIn {
+        let off_point = self.park_view.cycle(self.exec.parked_off_point(), raw);
+        let pos = [self.park_view.point[0], self.park_view.point[1]];
+        self.meter.cycle(CycleIn {
             bead_command: on_bead.then_some(report.command_index),
             printing,
             pos,
             landed_volume,
-            landing_before: landing_prev,
-            changes: &changes,
+            landing_before: self.landing_prev,
+            changes: &self.changes,
         });
-        landing_prev = landing;
-        // Valve changes go to the plant at this instant.
-        if out.valves != valves_prev {
-            let opened = out.valves & !valves_prev;
-            if opened != 0 {
-                let inlet = opened.trailing_zeros() as u8;
-                if last_opened.is_some_and(|l| l != inlet) {
-                    switches += 1;
-                }
-                last_opened = Some(inlet);
-            }
-            if let Some(p) = plant.as_mut() {
-                for i in 0..config.inlets.len() {
-                    p.command(i, out.valves & (1 << i) != 0);
-                }
-            }
-            valves_prev = out.valves;
+        self.landing_prev = landing;
+        Head {
+            printing,
+            raw,
+            pos,
+            off_point,
         }
+    }
+
+    /// Valve changes go to the plant at this instant.
+    fn valves_changed(&mut self) {
+        let valves = self.out.valves;
+        if valves == self.valves.prev {
+            return;
+        }
+        self.valves.count(valves);
+        if let Some(p) = self.plant.as_mut() {
+            set_valves(p, valves, self.config.inlets.len());
+        }
+    }
+
+    /// Shows the pauser this cycle, asks a refill where it is due, and makes the pause or
+    /// resume the pauser asks for.
+    fn steer_pauses(&mut self, report: &Report<R>, head: &Head, landed_volume: f64, t: f64) {
+        let seen = Seen {
+            t,
+            state: report.state,
+            pos: head.pos,
+            plan_mm: report.plan_volume.mm3::<f64>() / self.bead_area,
+            valves: self.out.valves,
+            landed: landed_volume,
+            q_plant: self.plant.as_ref().map_or(report.q.to_f64(), |p| p.q()),
+            off_point: head.off_point,
+            raw: head.raw,
+            point_z: self.park_view.point[2],
+            parked: self.exec.park_stage() == ParkStage::Parked,
+        };
+        self.refill.cycle(
+            &mut self.exec,
+            self.pauses.refill,
+            &self.out,
+            &mut self.pauser,
+        );
+        match self.pauser.cycle(&seen, self.dt) {
+            Action::Pause if self.pauses.park => self.exec.park(),
+            Action::Pause => self.exec.pause(),
+            Action::Resume => {
+                // Refused only if the job ended meanwhile; the record shows it.
+                let _ = self.exec.resume();
+            }
+            Action::None => {}
+        }
+        if report.state == RunState::Paused && self.pauser.holding() {
+            self.pauser.executor_says(self.exec.pause_info());
+        }
+    }
+
+    /// The run ended in a fault at `now`: the outputs are already safe; the executor
+    /// reports once more for the record, and the plant gets the valves as they stand.
+    fn faulted(mut self, now: u64, t: f64) -> RunResult {
+        let r = self.exec.tick(now + self.period_us, &mut self.out).err();
+        let fault = self.exec.fault_cause().or(r);
+        if let Some(p) = self.plant.as_mut() {
+            set_valves(p, self.out.valves, self.config.inlets.len());
+        }
+        let state = self.exec.state();
+        self.finish(state, fault, t)
+    }
+
+    /// The figures of a run that ended at `t` in `state`.
+    fn finish(self, state: RunState, fault: Option<Fault>, t: f64) -> RunResult {
+        let m = self.motion;
+        RunResult {
+            time_s: t,
+            cycles: self.cycle,
+            state,
+            fault,
+            valve_changes: self.out.valve_changes,
+            peak_step_rate: m.peak_rate,
+            outputs: self.out,
+            metrics: self.meter.finish(),
+            switches: self.valves.switches,
+            worst_step_error: m.worst_step_error,
+            peak_accel: m.peak_accel,
+            max_slugs: m.max_slugs,
+            axis_accel: m.axis_accel.peak,
+            axis_accel_at: m.axis_accel.at,
+            bead_area: self.bead_area,
+            segments: self.job.print_segments(),
+            pauses: self.pauser.finish(),
+        }
+    }
+}
+
+/// Commands each of the first `inlets` of the plant's valves as `valves` has it.
+fn set_valves(plant: &mut Plant, valves: u32, inlets: usize) {
+    for i in 0..inlets {
+        plant.command(i, valves & (1 << i) != 0);
+    }
+}
+
+/// The valves as last commanded, and the material switches counted from them.
+#[derive(Default)]
+struct ValveWatch {
+    prev: u32,
+    /// Valves opened for another material than the last one opened.
+    switches: u64,
+    last_opened: Option<u8>,
+}
+
+impl ValveWatch {
+    /// Takes `valves`, changed from `prev`.
+    fn count(&mut self, valves: u32) {
+        let opened = valves & !self.prev;
+        if opened != 0 {
+            let inlet = opened.trailing_zeros() as u8;
+            if self.last_opened.is_some_and(|l| l != inlet) {
+                self.switches += 1;
+            }
+            self.last_opened = Some(inlet);
+        }
+        self.prev = valves;
+    }
+}
+
+/// The motion figures gathered cycle by cycle: peak step rates, the step generator's
+/// worst error, axis and corner accelerations, and the most slugs at once.
+struct Motion {
+    dt: f64,
+    spm: [f64; 3],
+    /// The recording counts steps from zero; the executor's step positions are absolute.
+    origin: [i64; 3],
+    // Step rate over windows of RATE_WINDOW cycles: a per-cycle count of 1 would read as
+    // 10 000 steps/s at 10 kHz however slowly the axis moves.
+    rate_base: [u64; 3],
+    peak_rate: [f64; 3],
+    worst_step_error: f64,
+    peak_accel: f64,
+    axis_accel: AxisAccel,
+    /// The last three points `[x, y, t]` the curvature is taken from.
+    hist: [[f64; 3]; 3],
+    max_slugs: u8,
+}
+
+impl Motion {
+    fn new(dt: f64, spm: [f64; 3], start_um: [i32; 3]) -> Self {
+        let mut origin = [0i64; 3];
+        for a in 0..3 {
+            origin[a] = (start_um[a] as f64 * 1e-3 * spm[a]).round() as i64;
+        }
+        Motion {
+            dt,
+            spm,
+            origin,
+            rate_base: [0u64; 3],
+            peak_rate: [0.0f64; 3],
+            worst_step_error: 0.0f64,
+            peak_accel: 0.0f64,
+            axis_accel: AxisAccel::new(dt),
+            hist: [[f64::NAN; 3]; 3],
+            max_slugs: 0u8,
+        }
+    }
+
+    fn cycle<R: Real>(
+        &mut self,
+        cycle: u64,
+        report: &Report<R>,
+        out: &RecordingOutputs,
+        head: &Head,
+        t: f64,
+    ) {
         if cycle.is_multiple_of(RATE_WINDOW) {
             for a in 0..3 {
-                let n = out.pulses[a] - rate_base[a];
-                peak_rate[a] = peak_rate[a].max(n as f64 / (RATE_WINDOW as f64 * dt));
-                rate_base[a] = out.pulses[a];
+                let n = out.pulses[a] - self.rate_base[a];
+                self.peak_rate[a] =
+                    self.peak_rate[a].max(n as f64 / (RATE_WINDOW as f64 * self.dt));
+                self.rate_base[a] = out.pulses[a];
             }
         }
-        axis_accel.cycle(
-            [
-                report.position[0].to_f64(),
-                report.position[1].to_f64(),
-                report.position[2].to_f64(),
-            ],
-            out.valves != 0,
-            t,
-        );
+        self.axis_accel.cycle(head.raw, out.valves != 0, t);
         for a in 0..3 {
-            let planned = report.position[a].to_f64() * spm[a];
-            let commanded = (out.position[a] + origin[a]) as f64;
-            worst_step_error = worst_step_error.max((commanded - planned).abs());
+            let planned = report.position[a].to_f64() * self.spm[a];
+            let commanded = (out.position[a] + self.origin[a]) as f64;
+            self.worst_step_error = self.worst_step_error.max((commanded - planned).abs());
         }
-        if printing {
+        if head.printing {
             // Curvature from points ACCEL_BASE_MM apart: per-cycle steps are too short
             // for the f32 position's rounding.
+            let (pos, hist) = (head.pos, &mut self.hist);
             let d = ((pos[0] - hist[2][0]).powi(2) + (pos[1] - hist[2][1]).powi(2)).sqrt();
             if hist[2][0].is_nan() || d >= ACCEL_BASE_MM {
-                hist = [hist[1], hist[2], [pos[0], pos[1], t]];
+                *hist = [hist[1], hist[2], [pos[0], pos[1], t]];
                 // The head's own speed over the three points: with speed ramps the
                 // report's (the plan's) runs half a window ahead of the position.
-                let speed = path_speed(&hist);
-                peak_accel = peak_accel.max(speed * speed * curvature(&hist));
-                max_slugs = max_slugs.max(report.slugs);
+                let speed = path_speed(hist);
+                self.peak_accel = self.peak_accel.max(speed * speed * curvature(hist));
+                self.max_slugs = self.max_slugs.max(report.slugs);
             }
         } else {
-            hist = [[f64::NAN; 3]; 3];
-        }
-        if !pauses.requests.is_empty() {
-            let seen = Seen {
-                t,
-                state: report.state,
-                pos,
-                plan_mm: report.plan_volume.mm3::<f64>() / bead_area,
-                valves: out.valves,
-                landed: landed_volume,
-                q_plant: plant.as_ref().map_or(report.q.to_f64(), |p| p.q()),
-                off_point,
-                raw,
-                point_z: park_view.point[2],
-                parked: exec.park_stage() == ParkStage::Parked,
-            };
-            refill.cycle(&mut exec, pauses.refill, &out, &mut pauser);
-            match pauser.cycle(&seen, dt) {
-                Action::Pause if pauses.park => exec.park(),
-                Action::Pause => exec.pause(),
-                Action::Resume => {
-                    // Refused only if the job ended meanwhile; the record shows it.
-                    let _ = exec.resume();
-                }
-                Action::None => {}
-            }
-            if report.state == RunState::Paused && pauser.holding() {
-                pauser.executor_says(exec.pause_info());
-            }
-        }
-        observe(&Cycle {
-            t_s: t,
-            report: &report,
-            outputs: &out,
-            landed_volume,
-            landing,
-            plant: plant.as_ref(),
-        });
-        cycle += 1;
-        if matches!(report.state, RunState::Done | RunState::Aborted) {
-            let mut r = axis_accel.into(finish(
-                report.state,
-                None,
-                t,
-                cycle,
-                out,
-                meter.finish(),
-                switches,
-                peak_rate,
-                period_us,
-                worst_step_error,
-                peak_accel,
-                max_slugs,
-                bead_area,
-                job,
-            ));
-            r.pauses = pauser.finish();
-            return Ok(r);
-        }
-        if cycle > max_cycles {
-            return Err(SimError::Timeout(opts.max_time_s));
+            self.hist = [[f64::NAN; 3]; 3];
         }
     }
 }
@@ -508,45 +656,6 @@ fn curvature(h: &[[f64; 3]; 3]) -> f64 {
     2.0 * cross.abs() / (a * b * c)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn finish(
-    state: RunState,
-    fault: Option<Fault>,
-    t: f64,
-    cycles: u64,
-    outputs: RecordingOutputs,
-    metrics: Metrics,
-    switches: u64,
-    peak_rate: [f64; 3],
-    period_us: u64,
-    worst_step_error: f64,
-    peak_accel: f64,
-    max_slugs: u8,
-    bead_area: f64,
-    job: &Job,
-) -> RunResult {
-    let _ = period_us;
-    RunResult {
-        time_s: t,
-        cycles,
-        state,
-        fault,
-        valve_changes: outputs.valve_changes,
-        peak_step_rate: peak_rate,
-        outputs,
-        metrics,
-        switches,
-        worst_step_error,
-        peak_accel,
-        max_slugs,
-        axis_accel: [0.0; 3],
-        axis_accel_at: [0.0; 3],
-        bead_area,
-        segments: job.print_segments(),
-        pauses: Vec::new(),
-    }
-}
-
 /// Per-axis acceleration by central differences over `k` cycles each side, counted where
 /// a valve is open at the centre.
 struct AxisAccel {
@@ -585,10 +694,5 @@ impl AxisAccel {
                 }
             }
         }
-    }
-    fn into(self, mut r: RunResult) -> RunResult {
-        r.axis_accel = self.peak;
-        r.axis_accel_at = self.at;
-        r
     }
 }

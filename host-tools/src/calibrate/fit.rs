@@ -258,6 +258,51 @@ pub fn fit(
 ) -> Result<Fit, FitFailure> {
     let k = model.params.len();
     let m = x.len();
+    check_data(x, y, k)?;
+    let problem = Problem {
+        model,
+        x,
+        y,
+        space,
+        u: start(model)?,
+    };
+    let (problem, evaluations) = minimize(problem, options)?;
+    let p = problem.natural(&problem.u);
+    let (Some(r), Some(j)) = (problem.residuals(), problem.jacobian()) else {
+        return Err(FitFailure("no residuals at the optimum".into()));
+    };
+    if p.iter().any(|v| !v.is_finite()) || r.iter().any(|v| !v.is_finite()) {
+        return Err(FitFailure("a parameter ran off to infinity".into()));
+    }
+    check_bounds(model, &problem.u, &p)?;
+    check_identifiable(&j)?;
+    let rss = r.norm_squared();
+    let dof = m - k;
+    let s2 = rss / dof as f64;
+    let jtj = j.transpose() * &j;
+    let cov = jtj
+        .try_inverse()
+        .filter(|c| c.iter().all(|v| v.is_finite()))
+        .ok_or_else(|| FitFailure("the parameters cannot be told apart from these data".into()))?;
+    let estimates = estimates(model, &problem.u, &p, &cov, s2, t95(dof))?;
+    Ok(Fit {
+        model: model.clone(),
+        estimates,
+        points: m,
+        rss,
+        rms: (rss / m as f64).sqrt(),
+        r2: r2(y, space, rss),
+        aicc: aicc(m, k, rss),
+        residuals: r.iter().copied().collect(),
+        space,
+        evaluations,
+    })
+}
+
+/// Refuses data that cannot determine a curve of `k` parameters: too few points, a value
+/// not finite, or no spread in x or in y.
+fn check_data(x: &[f64], y: &[f64], k: usize) -> Result<(), FitFailure> {
+    let m = x.len();
     if m != y.len() || m < k + 2 {
         return Err(FitFailure(format!(
             "{m} points for {k} parameters (need at least {})",
@@ -290,8 +335,13 @@ pub fn fit(
             "every measured value is the same (zero variance): nothing to fit".into(),
         ));
     }
+    Ok(())
+}
+
+/// The search's starting point: each parameter's start on its scale.
+fn start(model: &Model) -> Result<DVector<f64>, FitFailure> {
     let u0 = DVector::from_iterator(
-        k,
+        model.params.len(),
         model.params.iter().map(|p| match p.scale {
             Scale::Linear => p.start,
             Scale::Log => p.start.ln(),
@@ -300,13 +350,15 @@ pub fn fit(
     if u0.iter().any(|v| !v.is_finite()) {
         return Err(FitFailure("no usable starting values".into()));
     }
-    let problem = Problem {
-        model,
-        x,
-        y,
-        space,
-        u: u0,
-    };
+    Ok(u0)
+}
+
+/// Runs Levenberg-Marquardt on `problem`: the problem at its optimum and the evaluations
+/// it took, or why it found none.
+fn minimize<'a>(
+    problem: Problem<'a>,
+    options: FitOptions,
+) -> Result<(Problem<'a>, usize), FitFailure> {
     // The crate asserts a patience above zero.
     let (problem, report) = LevenbergMarquardt::new()
         .with_patience(options.patience.max(1))
@@ -324,56 +376,60 @@ pub fn fit(
         }
         other => return Err(FitFailure(format!("optimizer stopped: {other:?}"))),
     }
-    let p = problem.natural(&problem.u);
-    let (Some(r), Some(j)) = (problem.residuals(), problem.jacobian()) else {
-        return Err(FitFailure("no residuals at the optimum".into()));
-    };
-    if p.iter().any(|v| !v.is_finite()) || r.iter().any(|v| !v.is_finite()) {
-        return Err(FitFailure("a parameter ran off to infinity".into()));
-    }
-    // A parameter that ran many decades from its data-derived start has gone to a bound
-    // of what the data can say (1.8e-39 ms is not a time constant).
+    Ok((problem, report.number_of_evaluations))
+}
+
+/// A parameter that ran many decades from its data-derived start has gone to a bound of
+/// what the data can say (1.8e-39 ms is not a time constant). `u` is the optimum on the
+/// search's scale, `p` in natural units.
+fn check_bounds(model: &Model, u: &DVector<f64>, p: &[f64]) -> Result<(), FitFailure> {
     for (c, param) in model.params.iter().enumerate() {
-        if param.scale == Scale::Log && (problem.u[c] - param.start.ln()).abs() > 12.0 * 10f64.ln()
-        {
+        if param.scale == Scale::Log && (u[c] - param.start.ln()).abs() > 12.0 * 10f64.ln() {
             return Err(FitFailure(format!(
                 "{} ran to a bound ({:.3e}, from a start of {:.3e}): the data do not determine it",
                 param.name, p[c], param.start
             )));
         }
     }
-    // Singular (or nearly) Jacobian, columns scaled to unit length: some combination of
-    // parameters does not change the curve at these points.
-    {
-        let mut js = j.clone();
-        for mut col in js.column_iter_mut() {
-            let n = col.norm();
-            if n > 0.0 && n.is_finite() {
-                col /= n;
-            }
-        }
-        let sv = js.singular_values();
-        let (smin, smax) = sv
-            .iter()
-            .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
-        if smin.is_nan() || smin <= 1e-9 * smax {
-            return Err(FitFailure(
-                "the Jacobian is singular at the optimum: the parameters cannot be told apart \
-                 from these data"
-                    .into(),
-            ));
+    Ok(())
+}
+
+/// Refuses a singular (or nearly) Jacobian `j`, columns scaled to unit length: some
+/// combination of parameters does not change the curve at these points.
+fn check_identifiable(j: &DMatrix<f64>) -> Result<(), FitFailure> {
+    let mut js = j.clone();
+    for mut col in js.column_iter_mut() {
+        let n = col.norm();
+        if n > 0.0 && n.is_finite() {
+            col /= n;
         }
     }
-    let rss = r.norm_squared();
-    let dof = m - k;
-    let s2 = rss / dof as f64;
-    let jtj = j.transpose() * &j;
-    let cov = jtj
-        .try_inverse()
-        .filter(|c| c.iter().all(|v| v.is_finite()))
-        .ok_or_else(|| FitFailure("the parameters cannot be told apart from these data".into()))?;
-    let t = t95(dof);
-    let mut estimates = Vec::with_capacity(k);
+    let sv = js.singular_values();
+    let (smin, smax) = sv
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+    if smin.is_nan() || smin <= 1e-9 * smax {
+        return Err(FitFailure(
+            "the Jacobian is singular at the optimum: the parameters cannot be told apart \
+             from these data"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Each parameter's value and 95 % interval (Student-t quantile `t`) from the covariance
+/// `cov` scaled by the residual variance `s2`; `u` is the optimum on the search's scale,
+/// `p` in natural units.
+fn estimates(
+    model: &Model,
+    u: &DVector<f64>,
+    p: &[f64],
+    cov: &DMatrix<f64>,
+    s2: f64,
+    t: f64,
+) -> Result<Vec<Estimate>, FitFailure> {
+    let mut estimates = Vec::with_capacity(model.params.len());
     for (c, param) in model.params.iter().enumerate() {
         let var = cov[(c, c)] * s2;
         // NaN fails this test as well as a negative variance does.
@@ -381,7 +437,7 @@ pub fn fit(
             return Err(FitFailure(format!("no variance for {}", param.name)));
         }
         let half = t * var.sqrt();
-        let u = problem.u[c];
+        let u = u[c];
         let (lo, hi) = match param.scale {
             Scale::Linear => (u - half, u + half),
             Scale::Log => ((u - half).exp(), (u + half).exp()),
@@ -402,6 +458,11 @@ pub fn fit(
             hi,
         });
     }
+    Ok(estimates)
+}
+
+/// R^2 of a fit with residual sum of squares `rss` to `y`, in `space`.
+fn r2(y: &[f64], space: Space, rss: f64) -> f64 {
     let ty: Vec<f64> = y
         .iter()
         .map(|&v| match space {
@@ -409,20 +470,13 @@ pub fn fit(
             Space::Log => v.ln(),
         })
         .collect();
-    let mean = ty.iter().sum::<f64>() / m as f64;
+    let mean = ty.iter().sum::<f64>() / y.len() as f64;
     let tss: f64 = ty.iter().map(|v| (v - mean).powi(2)).sum();
-    Ok(Fit {
-        model: model.clone(),
-        estimates,
-        points: m,
-        rss,
-        rms: (rss / m as f64).sqrt(),
-        r2: if tss > 0.0 { 1.0 - rss / tss } else { 1.0 },
-        aicc: aicc(m, k, rss),
-        residuals: r.iter().copied().collect(),
-        space,
-        evaluations: report.number_of_evaluations,
-    })
+    if tss > 0.0 {
+        1.0 - rss / tss
+    } else {
+        1.0
+    }
 }
 
 /// AICc difference under which two models count as equally supported.

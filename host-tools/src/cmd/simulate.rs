@@ -68,50 +68,8 @@ pub struct Args {
 /// Runs `dollop simulate`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let config = slicer::load_config(&a.config)?;
-    let (header, commands) = slicer::job_file::read_job(&a.job)?;
-    let hash = dollop::job::config_hash(&config);
-    if header.config_hash != hash {
-        eprintln!(
-            "dollop: note: {} was sliced for another config (hash {:08x}, {} has {:08x}); simulating anyway",
-            a.job.display(),
-            header.config_hash,
-            a.config.display(),
-            hash
-        );
-    }
-    let job = Job {
-        start_um: header.start_um,
-        initial_material: header.initial_material,
-        commands,
-    };
-    let max_seconds = match a.max_seconds {
-        None => f64::INFINITY,
-        Some(v) if v.is_finite() && v > 0.0 => v,
-        Some(v) => anyhow::bail!("--max-seconds {v} must be a number of seconds above 0"),
-    };
-    if let Some(bad) = a.pause_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
-        anyhow::bail!("--pause-at {bad}: each time must be a number of seconds, 0 or more");
-    }
-    if !(a.pause_for.is_finite() && a.pause_for >= 0.0) {
-        anyhow::bail!(
-            "--pause-for {}: must be a number of seconds, 0 or more",
-            a.pause_for
-        );
-    }
-    if let Some(bad) = a.resume_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
-        anyhow::bail!("--resume-at {bad}: each time must be a number of seconds, 0 or more");
-    }
-    if !a.resume_at.is_empty() && a.resume_at.len() != a.pause_at.len() {
-        anyhow::bail!(
-            "--resume-at gives {} times for {} --pause-at times; give one for each",
-            a.resume_at.len(),
-            a.pause_at.len()
-        );
-    }
-    let mut plan = PausePlan::uniform(&a.pause_at, a.pause_for);
-    plan.resume_at = a.resume_at.clone();
-    plan.park = a.park;
-    plan.refill = a.refill;
+    let job = load_job(&a, &config)?;
+    let (max_seconds, plan) = limits_and_pauses(&a)?;
     let job_name = a.job.display().to_string();
     let mut heat = a.heatmap.as_ref().map(|_| Heatmap::for_job(&job, &config));
     let plant = !a.model_only;
@@ -185,4 +143,59 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The job `a` names, with a note on stderr when it was sliced for another config than
+/// `config`.
+fn load_job(a: &Args, config: &dollop::config::Config) -> anyhow::Result<Job> {
+    let (header, commands) = slicer::job_file::read_job(&a.job)?;
+    let hash = dollop::job::config_hash(config);
+    if header.config_hash != hash {
+        eprintln!(
+            "dollop: note: {} was sliced for another config (hash {:08x}, {} has {:08x}); simulating anyway",
+            a.job.display(),
+            header.config_hash,
+            a.config.display(),
+            hash
+        );
+    }
+    Ok(Job {
+        start_um: header.start_um,
+        initial_material: header.initial_material,
+        commands,
+    })
+}
+
+/// `--max-seconds` (infinite when not given) and the pauses `--pause-at`, `--pause-for`,
+/// `--resume-at`, `--park` and `--refill` ask for, each time checked.
+fn limits_and_pauses(a: &Args) -> anyhow::Result<(f64, PausePlan)> {
+    let max_seconds = match a.max_seconds {
+        None => f64::INFINITY,
+        Some(v) if v.is_finite() && v > 0.0 => v,
+        Some(v) => anyhow::bail!("--max-seconds {v} must be a number of seconds above 0"),
+    };
+    if let Some(bad) = a.pause_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+        anyhow::bail!("--pause-at {bad}: each time must be a number of seconds, 0 or more");
+    }
+    if !(a.pause_for.is_finite() && a.pause_for >= 0.0) {
+        anyhow::bail!(
+            "--pause-for {}: must be a number of seconds, 0 or more",
+            a.pause_for
+        );
+    }
+    if let Some(bad) = a.resume_at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+        anyhow::bail!("--resume-at {bad}: each time must be a number of seconds, 0 or more");
+    }
+    if !a.resume_at.is_empty() && a.resume_at.len() != a.pause_at.len() {
+        anyhow::bail!(
+            "--resume-at gives {} times for {} --pause-at times; give one for each",
+            a.resume_at.len(),
+            a.pause_at.len()
+        );
+    }
+    let mut plan = PausePlan::uniform(&a.pause_at, a.pause_for);
+    plan.resume_at = a.resume_at.clone();
+    plan.park = a.park;
+    plan.refill = a.refill;
+    Ok((max_seconds, plan))
 }

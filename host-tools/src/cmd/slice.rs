@@ -418,18 +418,7 @@ fn finish(
         output::stage(&mut staged, path, |w| w.write_all(text.as_bytes()))?;
     }
     if let Some(path) = &a.preview {
-        let names = crate::slicer::material_names(&config);
-        let img = preview::figure(
-            &sliced.commands,
-            sliced.header.start_um,
-            &PreviewOptions {
-                bead_mm: config.channel.line_pitch_mm as f64,
-                layer: a.preview_layer,
-                ..Default::default()
-            },
-            &names,
-        )?;
-        preview::stage_png(&mut staged, path, &img)?;
+        stage_preview(&mut staged, path, a.preview_layer, &config, &sliced)?;
     }
     let existed: Vec<PathBuf> = [Some(&out), a.gcode.as_ref(), a.preview.as_ref()]
         .into_iter()
@@ -438,14 +427,60 @@ fn finish(
         .cloned()
         .collect();
     output::commit(staged)?;
-    let replaced = |p: &PathBuf| {
-        if existed.contains(p) {
+    let gcode_stats = gcode.as_ref().map(|(_, gs)| gs);
+    print_summary(
+        &a,
+        &sliced,
+        &config,
+        &out,
+        job_bytes.len(),
+        gcode_stats,
+        &existed,
+    );
+    Ok(())
+}
+
+/// Stages the preview picture (of `layer`, or of the whole job) at `path`.
+fn stage_preview(
+    staged: &mut output::StagedFiles,
+    path: &Path,
+    layer: Option<usize>,
+    config: &dollop::config::Config,
+    sliced: &slicer::Sliced,
+) -> anyhow::Result<()> {
+    let names = crate::slicer::material_names(config);
+    let img = preview::figure(
+        &sliced.commands,
+        sliced.header.start_um,
+        &PreviewOptions {
+            bead_mm: config.channel.line_pitch_mm as f64,
+            layer,
+            ..Default::default()
+        },
+        &names,
+    )?;
+    preview::stage_png(staged, path, &img)?;
+    Ok(())
+}
+
+/// The summary of what was sliced and written (`existed`: the outputs that replaced a
+/// file).
+fn print_summary(
+    a: &Args,
+    sliced: &slicer::Sliced,
+    config: &dollop::config::Config,
+    out: &Path,
+    job_len: usize,
+    gcode: Option<&gcode::GcodeStats>,
+    existed: &[PathBuf],
+) {
+    let replaced = |p: &Path| {
+        if existed.iter().any(|e| e == p) {
             " (replaced the file that was there)"
         } else {
             ""
         }
     };
-    let job_len = job_bytes.len();
     let segs = sliced.header.print_segments.max(1) as f64;
     let st = &sliced.stats;
     println!(
@@ -461,7 +496,7 @@ fn finish(
         st.prime_mm,
         st.travel_mm,
     );
-    if unsized_image(&a) {
+    if unsized_image(a) {
         eprintln!(
             "dollop: note: no --width-mm or --height-mm, so one pixel is one line pitch ({} mm) and this prints {:.1} x {:.1} mm; give --width-mm to choose the size",
             config.channel.line_pitch_mm, sliced.size_mm[0], sliced.size_mm[1]
@@ -473,9 +508,9 @@ fn finish(
         job_len,
         job_len as f64 / segs,
         sliced.body_bytes_per_segment(),
-        replaced(&out)
+        replaced(out)
     );
-    if let (Some(path), Some((_, gs))) = (&a.gcode, gcode) {
+    if let (Some(path), Some(gs)) = (&a.gcode, gcode) {
         println!(
             "wrote {} ({} bytes, {:.1} bytes per print segment, {} moves, {} valve switches){}",
             path.display(),
@@ -489,7 +524,6 @@ fn finish(
     if let Some(path) = &a.preview {
         println!("wrote {}{}", path.display(), replaced(path));
     }
-    Ok(())
 }
 
 /// The G-code `--gcode` asks for: from the executor's run (`--gcode-style run`) or the

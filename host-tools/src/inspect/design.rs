@@ -119,6 +119,59 @@ impl Plan {
 /// The plan of `commands` (starting at `start_um`) for beads `pitch` mm wide whose
 /// corners the executor rounds to `corner_radius` mm.
 pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius: f64) -> Plan {
+    let beads = beads_of(commands, start_um);
+    let mut zs: Vec<i64> = beads.iter().map(|b| b.0).collect();
+    zs.sort_unstable();
+    zs.dedup();
+    let layers = zs.len();
+    let top = zs.last().copied().unwrap_or(0);
+    // The slicer's priming bead comes first, a straight single-material bead apart from
+    // the design; it is not part of what is measured.
+    let first_is_prime =
+        beads.len() > 1 && beads[0].1.points.len() == 2 && beads[0].1.runs.len() == 1;
+    let on_top: Vec<(Vec<[f64; 2]>, usize)> = beads
+        .iter()
+        .filter(|b| b.0 == top)
+        .map(|b| (b.1.points.clone(), b.1.runs.len()))
+        .collect();
+    let markers = crate::slicer::markers::recognise(&on_top, pitch);
+    let mut beads: Vec<Bead> = beads
+        .into_iter()
+        .enumerate()
+        .filter(|(i, b)| b.0 == top && !(*i == 0 && first_is_prime))
+        .map(|(_, b)| b.1)
+        .collect();
+    if markers.is_some() {
+        beads.truncate(beads.len().saturating_sub(4));
+    }
+    let mut raw = beads;
+    for b in &mut raw {
+        b.turns = turns(b);
+    }
+    let beads: Vec<Bead> = raw.iter().map(|b| rounded(b, corner_radius)).collect();
+    let (lo, hi) = extent(&beads, pitch);
+    let mut materials: Vec<u8> = beads
+        .iter()
+        .flat_map(|b| b.runs.iter().map(|r| r.1))
+        .collect();
+    materials.sort_unstable();
+    materials.dedup();
+    let boundaries = boundaries(&beads, &raw);
+    Plan {
+        beads,
+        boundaries,
+        pitch,
+        lo,
+        hi,
+        materials,
+        layers,
+        markers,
+    }
+}
+
+/// The beads `commands` (starting at `start_um`) lay, each with the height it lies at,
+/// um, in the order laid.
+fn beads_of(commands: &[Command], start_um: [i32; 3]) -> Vec<(i64, Bead)> {
     let mut beads: Vec<(i64, Bead)> = Vec::new();
     let mut cur: Option<Bead> = None;
     let mm = |p: [i32; 3]| [p[0] as f64 * 1e-3, p[1] as f64 * 1e-3];
@@ -155,35 +208,11 @@ pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius:
         b.s.push(s0 + len);
     }
     beads.extend(cur.take().map(|b| (z, b)));
-    let mut zs: Vec<i64> = beads.iter().map(|b| b.0).collect();
-    zs.sort_unstable();
-    zs.dedup();
-    let layers = zs.len();
-    let top = zs.last().copied().unwrap_or(0);
-    // The slicer's priming bead comes first, a straight single-material bead apart from
-    // the design; it is not part of what is measured.
-    let first_is_prime =
-        beads.len() > 1 && beads[0].1.points.len() == 2 && beads[0].1.runs.len() == 1;
-    let on_top: Vec<(Vec<[f64; 2]>, usize)> = beads
-        .iter()
-        .filter(|b| b.0 == top)
-        .map(|b| (b.1.points.clone(), b.1.runs.len()))
-        .collect();
-    let markers = crate::slicer::markers::recognise(&on_top, pitch);
-    let mut beads: Vec<Bead> = beads
-        .into_iter()
-        .enumerate()
-        .filter(|(i, b)| b.0 == top && !(*i == 0 && first_is_prime))
-        .map(|(_, b)| b.1)
-        .collect();
-    if markers.is_some() {
-        beads.truncate(beads.len().saturating_sub(4));
-    }
-    let mut raw = beads;
-    for b in &mut raw {
-        b.turns = turns(b);
-    }
-    let beads: Vec<Bead> = raw.iter().map(|b| rounded(b, corner_radius)).collect();
+    beads
+}
+
+/// The lowest and highest corner of what `beads` (`pitch` mm wide) cover, mm.
+fn extent(beads: &[Bead], pitch: f64) -> ([f64; 2], [f64; 2]) {
     let half = pitch / 2.0;
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -193,12 +222,12 @@ pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius:
             hi[a] = hi[a].max(p[a] + half);
         }
     }
-    let mut materials: Vec<u8> = beads
-        .iter()
-        .flat_map(|b| b.runs.iter().map(|r| r.1))
-        .collect();
-    materials.sort_unstable();
-    materials.dedup();
+    (lo, hi)
+}
+
+/// The material boundaries along `beads` (the corners rounded) with the room each has
+/// before and after; `raw` (the same beads unrounded) places them.
+fn boundaries(beads: &[Bead], raw: &[Bead]) -> Vec<Boundary> {
     let mut boundaries = Vec::new();
     for (bi, b) in beads.iter().enumerate() {
         for k in 1..b.runs.len() {
@@ -219,16 +248,7 @@ pub fn plan(commands: &[Command], start_um: [i32; 3], pitch: f64, corner_radius:
             });
         }
     }
-    Plan {
-        beads,
-        boundaries,
-        pitch,
-        lo,
-        hi,
-        materials,
-        layers,
-        markers,
-    }
+    boundaries
 }
 
 /// `b` with its corners filleted as the executor does (`dollop::motion::fillet`, each

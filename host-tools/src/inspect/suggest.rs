@@ -60,11 +60,20 @@ pub struct Suggestion {
     pub config: Config,
 }
 
-/// A parameter to search: its name, the truth at a search value, the range searched,
-/// whether the value is a log scale factor, and whether the range's low end is the
-/// physical limit (a best value there is an answer, not the least bad of a range too
-/// narrow).
-type Candidate = (String, Box<dyn Fn(f64) -> Truth>, (f64, f64), bool, bool);
+/// A parameter to search.
+struct Candidate {
+    /// What is varied, for people.
+    what: String,
+    /// The truth at a search value.
+    truth_of: Box<dyn Fn(f64) -> Truth>,
+    /// The range searched.
+    range: (f64, f64),
+    /// The value is the log of a scale factor.
+    log: bool,
+    /// The range's low end is the physical limit: a best value there is an answer, not
+    /// the least bad of a range too narrow.
+    lo_physical: bool,
+}
 
 /// An error common to every boundary read off the photo, in frame pixels, that the
 /// interval allows for (see `suggest`).
@@ -233,8 +242,7 @@ impl Suggestion {
 pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
     let n = i.found.len();
     let base = simulated(i, config, job, &Truth::default());
-    let rms = |s: f64| (s / n.max(1) as f64).sqrt();
-    let rms_now = base.as_ref().map_or(f64::INFINITY, |b| rms(sse(i, b)));
+    let rms_now = base.as_ref().map_or(f64::INFINITY, |b| rms(sse(i, b), n));
     let mut lines = Vec::new();
     let mut fits: Vec<Fit> = Vec::new();
     if n < 3 || base.is_none() {
@@ -243,156 +251,211 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
             if base.is_none() { " and the job does not simulate" } else { "" }
         ));
     } else {
-        // The valves' dead time can be found shorter than configured down to none.
-        let min_delay = config
-            .inlets
-            .iter()
-            .map(|v| v.valve_open_delay_ms.min(v.valve_close_delay_ms) as f64)
-            .fold(40.0, f64::min)
-            .max(0.0);
-        let mut candidates: Vec<Candidate> = vec![
-            (
-                "channel and filament volume (channel_length_mm)".into(),
-                Box::new(|x: f64| Truth {
-                    channel_scale: x.exp(),
-                    ..Default::default()
-                }),
-                (0.5f64.ln(), 2f64.ln()),
-                true,
-                false,
-            ),
-            (
-                "valve dead time (valve_open_delay_ms, valve_close_delay_ms)".into(),
-                Box::new(|x: f64| Truth {
-                    dead_time_ms: x,
-                    ..Default::default()
-                }),
-                (-min_delay, 40.0),
-                false,
-                true,
-            ),
-        ];
-        for &m in &i.plan.materials {
-            let name = config
-                .inlets
-                .get(m as usize)
-                .map_or(format!("inlet {m}"), |x| x.material.to_string());
-            candidates.push((
-                format!("viscosity of inlet {m} ({name})"),
-                Box::new(move |x: f64| {
-                    let mut v = [1.0; 4];
-                    if let Some(s) = v.get_mut(m as usize) {
-                        *s = x.exp();
-                    }
-                    Truth {
-                        viscosity_scale: v,
-                        ..Default::default()
-                    }
-                }),
-                (0.5f64.ln(), 2f64.ln()),
-                true,
-                false,
-            ));
-        }
         let mut misses = Vec::new();
-        for (what, truth_of, (lo, hi), log, lo_physical) in candidates {
-            let mut f = |x: f64| {
-                simulated(i, config, job, &truth_of(x)).map_or(f64::INFINITY, |s| sse(i, &s))
-            };
-            let (x, best) = golden(lo, hi, 14, &mut f);
-            // A best value at the edge of the search is no explanation, only the least bad.
-            let edge = (!lo_physical && x - lo < 0.01 * (hi - lo)) || hi - x < 0.01 * (hi - lo);
-            if !best.is_finite() || edge {
-                misses.push(format!(
+        for c in candidates(i, config) {
+            match fit_one(i, config, job, c) {
+                Ok(fit) => fits.push(fit),
+                Err(what) => misses.push(format!(
                     "  {what}: no value in the range searched explains the offsets"
-                ));
-                continue;
+                )),
             }
-            // Interval from the curvature of the squared error at the best value.
-            // (A neighbour the simulator cannot match boundary for boundary counts as
-            // unknown, and the step shrinks until both sides can be evaluated.)
-            let mut h = (hi - lo) * 0.02;
-            let mut curv = f64::NAN;
-            // The simulated offsets' change with the value, mm per unit, each boundary.
-            let mut slope: Vec<f64> = Vec::new();
-            for _ in 0..6 {
-                let sim = |x: f64| simulated(i, config, job, &truth_of(x));
-                if let (Some(up), Some(down)) = (sim(x + h), sim(x - h)) {
-                    curv = (sse(i, &up) + sse(i, &down) - 2.0 * best) / (h * h);
-                    slope = up
-                        .iter()
-                        .zip(&down)
-                        .map(|(u, d)| (u - d) / (2.0 * h))
-                        .collect();
-                    break;
-                }
-                h *= 0.3;
-            }
-            let var = if curv > 0.0 && n > 1 {
-                2.0 * best / (n - 1) as f64 / curv
-            } else {
-                f64::NAN
-            };
-            // The scatter of the offsets about the fit is not all the photo can get wrong:
-            // an error common to every boundary (the photo read at `SYSTEMATIC_PX` of a
-            // frame pixel) moves the best value by bias * sum(slope) / sum(slope^2),
-            // which no scatter shows. It is added to the interval.
-            let (sum, sum2) = slope
-                .iter()
-                .fold((0.0, 0.0), |(a, b), &g| (a + g, b + g * g));
-            let bias = SYSTEMATIC_PX / i.frame.px_per_mm;
-            let systematic = if sum2 > 0.0 {
-                bias * sum.abs() / sum2
-            } else {
-                0.0
-            };
-            let half = 1.96 * var.sqrt() + systematic;
-            let shown = |v: f64| if log { v.exp() } else { v };
-            // Not beyond the physical limit at the range's low end.
-            let low = if lo_physical {
-                (x - half).max(lo)
-            } else {
-                x - half
-            };
-            fits.push(Fit {
-                what,
-                truth: truth_of(x),
-                value: (shown(x), shown(low), shown(x + half)),
-                rms: rms(best),
-            });
         }
         fits.sort_by(|a, b| a.rms.total_cmp(&b.rms));
         lines.push(format!(
             "as configured the simulated boundaries miss the measured ones by {rms_now:.3} mm RMS over {n} boundaries"
         ));
-        for f in &fits {
-            // No interval where the misfit does not curve up about the best value (or
-            // its neighbours do not simulate): say so rather than print NaN.
-            let interval = if f.value.1.is_finite() && f.value.2.is_finite() {
-                format!("[{:.4}, {:.4}]", f.value.1, f.value.2)
-            } else {
-                "[no interval: the misfit does not curve up about it]".into()
-            };
-            lines.push(format!(
-                "  {}: {} {:.4} {interval} leaves {:.3} mm RMS",
-                f.what,
-                if f.truth.dead_time_ms != 0.0 {
-                    "+ ms"
-                } else {
-                    "x"
-                },
-                f.value.0,
-                f.rms
-            ));
-        }
+        lines.extend(fits.iter().map(fit_line));
         lines.extend(misses);
     }
-    let best = fits.first().cloned();
-    let mut out = config.clone();
-    let mut fragment = None;
-    match best {
+    let (out, fragment) = conclude(i, config, job, rms_now, &fits, &mut lines);
+    Suggestion {
+        rms_now,
+        fits,
+        lines,
+        fragment,
+        config: out,
+    }
+}
+
+/// RMS over `n` boundaries (at least one) of offsets whose squares sum to `sse`, mm.
+fn rms(sse: f64, n: usize) -> f64 {
+    (sse / n.max(1) as f64).sqrt()
+}
+
+/// The parameters to search: the channel and filament volume, the valves' dead time, and
+/// the viscosity of each material the plan prints.
+fn candidates(i: &Inspection, config: &Config) -> Vec<Candidate> {
+    // The valves' dead time can be found shorter than configured down to none.
+    let min_delay = config
+        .inlets
+        .iter()
+        .map(|v| v.valve_open_delay_ms.min(v.valve_close_delay_ms) as f64)
+        .fold(40.0, f64::min)
+        .max(0.0);
+    let mut candidates = vec![
+        Candidate {
+            what: "channel and filament volume (channel_length_mm)".into(),
+            truth_of: Box::new(|x: f64| Truth {
+                channel_scale: x.exp(),
+                ..Default::default()
+            }),
+            range: (0.5f64.ln(), 2f64.ln()),
+            log: true,
+            lo_physical: false,
+        },
+        Candidate {
+            what: "valve dead time (valve_open_delay_ms, valve_close_delay_ms)".into(),
+            truth_of: Box::new(|x: f64| Truth {
+                dead_time_ms: x,
+                ..Default::default()
+            }),
+            range: (-min_delay, 40.0),
+            log: false,
+            lo_physical: true,
+        },
+    ];
+    for &m in &i.plan.materials {
+        let name = config
+            .inlets
+            .get(m as usize)
+            .map_or(format!("inlet {m}"), |x| x.material.to_string());
+        candidates.push(Candidate {
+            what: format!("viscosity of inlet {m} ({name})"),
+            truth_of: Box::new(move |x: f64| {
+                let mut v = [1.0; 4];
+                if let Some(s) = v.get_mut(m as usize) {
+                    *s = x.exp();
+                }
+                Truth {
+                    viscosity_scale: v,
+                    ..Default::default()
+                }
+            }),
+            range: (0.5f64.ln(), 2f64.ln()),
+            log: true,
+            lo_physical: false,
+        });
+    }
+    candidates
+}
+
+/// `c`'s best value by a golden-section search of its range, with its interval; or, where
+/// no value in the range explains the offsets, what `c` varies.
+fn fit_one(i: &Inspection, config: &Config, job: &Job, c: Candidate) -> Result<Fit, String> {
+    let (lo, hi) = c.range;
+    let mut f =
+        |x: f64| simulated(i, config, job, &(c.truth_of)(x)).map_or(f64::INFINITY, |s| sse(i, &s));
+    let (x, best) = golden(lo, hi, 14, &mut f);
+    // A best value at the edge of the search is no explanation, only the least bad.
+    let edge = (!c.lo_physical && x - lo < 0.01 * (hi - lo)) || hi - x < 0.01 * (hi - lo);
+    if !best.is_finite() || edge {
+        return Err(c.what);
+    }
+    let half = half_interval(i, config, job, &c, x, best);
+    let shown = |v: f64| if c.log { v.exp() } else { v };
+    // Not beyond the physical limit at the range's low end.
+    let low = if c.lo_physical {
+        (x - half).max(lo)
+    } else {
+        x - half
+    };
+    Ok(Fit {
+        truth: (c.truth_of)(x),
+        what: c.what,
+        value: (shown(x), shown(low), shown(x + half)),
+        rms: rms(best, i.found.len()),
+    })
+}
+
+/// Half the 95 % interval of `c` about its best value `x` (squared error `best` there), in
+/// the search's unit; NaN where the misfit does not curve up about it.
+fn half_interval(
+    i: &Inspection,
+    config: &Config,
+    job: &Job,
+    c: &Candidate,
+    x: f64,
+    best: f64,
+) -> f64 {
+    let n = i.found.len();
+    let (lo, hi) = c.range;
+    // Interval from the curvature of the squared error at the best value.
+    // (A neighbour the simulator cannot match boundary for boundary counts as
+    // unknown, and the step shrinks until both sides can be evaluated.)
+    let mut h = (hi - lo) * 0.02;
+    let mut curv = f64::NAN;
+    // The simulated offsets' change with the value, mm per unit, each boundary.
+    let mut slope: Vec<f64> = Vec::new();
+    for _ in 0..6 {
+        let sim = |x: f64| simulated(i, config, job, &(c.truth_of)(x));
+        if let (Some(up), Some(down)) = (sim(x + h), sim(x - h)) {
+            curv = (sse(i, &up) + sse(i, &down) - 2.0 * best) / (h * h);
+            slope = up
+                .iter()
+                .zip(&down)
+                .map(|(u, d)| (u - d) / (2.0 * h))
+                .collect();
+            break;
+        }
+        h *= 0.3;
+    }
+    let var = if curv > 0.0 && n > 1 {
+        2.0 * best / (n - 1) as f64 / curv
+    } else {
+        f64::NAN
+    };
+    // The scatter of the offsets about the fit is not all the photo can get wrong:
+    // an error common to every boundary (the photo read at `SYSTEMATIC_PX` of a
+    // frame pixel) moves the best value by bias * sum(slope) / sum(slope^2),
+    // which no scatter shows. It is added to the interval.
+    let (sum, sum2) = slope
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &g| (a + g, b + g * g));
+    let bias = SYSTEMATIC_PX / i.frame.px_per_mm;
+    let systematic = if sum2 > 0.0 {
+        bias * sum.abs() / sum2
+    } else {
+        0.0
+    };
+    1.96 * var.sqrt() + systematic
+}
+
+/// The report's line for one fit.
+fn fit_line(f: &Fit) -> String {
+    // No interval where the misfit does not curve up about the best value (or
+    // its neighbours do not simulate): say so rather than print NaN.
+    let interval = if f.value.1.is_finite() && f.value.2.is_finite() {
+        format!("[{:.4}, {:.4}]", f.value.1, f.value.2)
+    } else {
+        "[no interval: the misfit does not curve up about it]".into()
+    };
+    format!(
+        "  {}: {} {:.4} {interval} leaves {:.3} mm RMS",
+        f.what,
+        if f.truth.dead_time_ms != 0.0 {
+            "+ ms"
+        } else {
+            "x"
+        },
+        f.value.0,
+        f.rms
+    )
+}
+
+/// What the fits (best first) conclude, in `lines`: the config with the best fit's
+/// correction and its TOML fragment where one explains the offsets well enough, else the
+/// config as it is and none.
+fn conclude(
+    i: &Inspection,
+    config: &Config,
+    job: &Job,
+    rms_now: f64,
+    fits: &[Fit],
+    lines: &mut Vec<String>,
+) -> (Config, Option<String>) {
+    match fits.first() {
         Some(b) if rms_now > DEADBAND_MM && b.rms < 0.7 * rms_now => {
-            out = b.truth.physics(config);
+            let out = b.truth.physics(config);
             lines.push(format!(
                 "believed off: {} ({:.3} -> explains all but {:.3} mm RMS)",
                 b.what, b.value.0, b.rms
@@ -405,8 +468,9 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
                     ));
                 }
             }
-            fragment = Some(fragment_for(i, config, &out));
+            let fragment = Some(fragment_for(i, config, &out));
             lines.extend(width_lines(i, config, job, &b.truth, "the correction"));
+            return (out, fragment);
         }
         Some(_) if rms_now <= DEADBAND_MM => {
             lines.push(format!(
@@ -419,13 +483,7 @@ pub fn suggest(i: &Inspection, config: &Config, job: &Job) -> Suggestion {
         ),
         None => {}
     }
-    Suggestion {
-        rms_now,
-        fits,
-        lines,
-        fragment,
-        config: out,
-    }
+    (config.clone(), None)
 }
 
 /// The TOML that turns `from` into `to`: valid TOML throughout, each inlet's corrections in

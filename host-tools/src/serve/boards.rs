@@ -719,28 +719,7 @@ impl Worker {
             | WorkerOrder::Abort => {}
         }
         match o {
-            WorkerOrder::Send(e) => {
-                let name = e.figures.name.clone();
-                self.queue.push(e);
-                let busy =
-                    self.view.mode == Some(Mode::Job) || self.view.activity.starts_with("finished");
-                if busy {
-                    return Ok(format!("{name} queued ({} waiting)", self.queue.len()));
-                }
-                if self.client.is_none() {
-                    self.start_when_free = true;
-                    return Ok(format!(
-                        "{name} queued: the board is not connected; it starts when the board is back and free"
-                    ));
-                }
-                if let Some(what) = controls::busy_words(self.view.mode) {
-                    self.start_when_free = true;
-                    return Ok(format!(
-                        "{name} queued: {what}; it starts when the board is free"
-                    ));
-                }
-                self.start_next()
-            }
+            WorkerOrder::Send(e) => self.queue_job(e),
             WorkerOrder::StartNext => self.start_next(),
             WorkerOrder::Unqueue(id) => {
                 // One entry: the same job queued twice is two prints, and a remove click
@@ -774,21 +753,7 @@ impl Worker {
                 self.pause_asked = None;
                 Ok("resumed".into())
             }
-            WorkerOrder::Abort => {
-                self.start_when_free = false;
-                self.cancel.store(false, Ordering::SeqCst);
-                let c = self.client()?;
-                let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
-                ops::abort(c).map_err(|e| e.to_string())?;
-                if let (Some(cur), true) = (self.current.as_mut(), printing) {
-                    cur.aborted = true;
-                }
-                let Some(c) = self.client.as_mut() else {
-                    return Err("the board is not connected".into());
-                };
-                let done = ops::clear_if_halted(c).map_err(|e| e.to_string())?;
-                Ok(done.to_string())
-            }
+            WorkerOrder::Abort => self.abort(),
             WorkerOrder::Home(fallback) => {
                 self.ensure_config(fallback)?;
                 self.client()?
@@ -815,6 +780,46 @@ impl Worker {
                 Ok(format!("valve {inlet} open for {secs} s"))
             }
         }
+    }
+
+    /// Queues `e`, and starts it at once if the board is connected and free.
+    fn queue_job(&mut self, e: Arc<JobEntry>) -> Result<String, String> {
+        let name = e.figures.name.clone();
+        self.queue.push(e);
+        let busy = self.view.mode == Some(Mode::Job) || self.view.activity.starts_with("finished");
+        if busy {
+            return Ok(format!("{name} queued ({} waiting)", self.queue.len()));
+        }
+        if self.client.is_none() {
+            self.start_when_free = true;
+            return Ok(format!(
+                "{name} queued: the board is not connected; it starts when the board is back and free"
+            ));
+        }
+        if let Some(what) = controls::busy_words(self.view.mode) {
+            self.start_when_free = true;
+            return Ok(format!(
+                "{name} queued: {what}; it starts when the board is free"
+            ));
+        }
+        self.start_next()
+    }
+
+    /// Aborts the board (marking the job it prints aborted) and clears a halt.
+    fn abort(&mut self) -> Result<String, String> {
+        self.start_when_free = false;
+        self.cancel.store(false, Ordering::SeqCst);
+        let c = self.client()?;
+        let printing = c.status().map_err(|e| e.to_string())?.control.mode == Mode::Job;
+        ops::abort(c).map_err(|e| e.to_string())?;
+        if let (Some(cur), true) = (self.current.as_mut(), printing) {
+            cur.aborted = true;
+        }
+        let Some(c) = self.client.as_mut() else {
+            return Err("the board is not connected".into());
+        };
+        let done = ops::clear_if_halted(c).map_err(|e| e.to_string())?;
+        Ok(done.to_string())
     }
 
     /// Loads a config if the board has none (jog, home and valves need one): the current
@@ -944,77 +949,89 @@ impl Worker {
         // The page has shown the status from before the config was loaded: show this one.
         self.show(&s);
         if !s.control.homed {
-            self.view.activity = "homing".into();
-            self.publish_now();
-            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
-            c.command(&Request::Home)?;
-            let start = Instant::now();
-            c.sleep(Duration::from_millis(5));
-            loop {
-                // An Abort waits behind this order: homing takes tens of seconds on a
-                // real machine (7.5 s of wall time on the emulated board), so it is
-                // looked at here and ends the wait (the worker then aborts the board).
-                if self.cancel.load(Ordering::SeqCst) {
-                    return Err(LinkError::Cancelled(Cancelled::Homing));
-                }
-                let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
-                let s = c.status()?;
-                // Every poll is shown: the page's mode, position and update count move
-                // while the machine homes (they stood still for the whole homing).
-                self.show(&s);
-                self.view.activity = "homing".into();
-                self.publish_now();
-                match s.control.mode {
-                    Mode::Idle => break,
-                    Mode::Halted => {
-                        return Err(LinkError::Protocol(
-                            mode_words(&s).unwrap_or_else(|| "homing failed".into()),
-                        ))
-                    }
-                    _ => {}
-                }
-                if start.elapsed() > Duration::from_secs(300) {
-                    return Err(LinkError::Protocol(
-                        "homing did not finish in 5 minutes; check the endstops".into(),
-                    ));
-                }
-                let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
-                c.sleep(Duration::from_millis(50));
-            }
-            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
-            if !c.status()?.control.homed {
-                return Err(LinkError::Protocol(
-                    "homing did not finish; check the endstops".into(),
-                ));
-            }
+            self.home_and_wait()?;
         }
         let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
         c.command(&Request::Start)?;
-        let mut layer_starts = Vec::new();
-        let mut last = usize::MAX;
-        for (p, start) in entry
-            .toolpath
-            .paths
-            .iter()
-            .zip(entry.toolpath.starts.iter())
-        {
-            if p.l != last {
-                last = p.l;
-                layer_starts.push(*start);
-            }
-        }
         self.current = Some(Current {
             entry: entry.clone(),
             clock: PrintClock::start(Instant::now()),
-            layer_starts,
+            layer_starts: layer_starts(entry),
             aborted: false,
         });
         Ok(format!("{} uploaded and started", entry.figures.name))
     }
 
+    /// Homes the board and waits for it to finish, showing every poll; an Abort ends the
+    /// wait.
+    fn home_and_wait(&mut self) -> Result<(), LinkError> {
+        self.view.activity = "homing".into();
+        self.publish_now();
+        let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+        c.command(&Request::Home)?;
+        let start = Instant::now();
+        c.sleep(Duration::from_millis(5));
+        loop {
+            // An Abort waits behind this order: homing takes tens of seconds on a
+            // real machine (7.5 s of wall time on the emulated board), so it is
+            // looked at here and ends the wait (the worker then aborts the board).
+            if self.cancel.load(Ordering::SeqCst) {
+                return Err(LinkError::Cancelled(Cancelled::Homing));
+            }
+            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+            let s = c.status()?;
+            // Every poll is shown: the page's mode, position and update count move
+            // while the machine homes (they stood still for the whole homing).
+            self.show(&s);
+            self.view.activity = "homing".into();
+            self.publish_now();
+            match s.control.mode {
+                Mode::Idle => break,
+                Mode::Halted => {
+                    return Err(LinkError::Protocol(
+                        mode_words(&s).unwrap_or_else(|| "homing failed".into()),
+                    ))
+                }
+                _ => {}
+            }
+            if start.elapsed() > Duration::from_secs(300) {
+                return Err(LinkError::Protocol(
+                    "homing did not finish in 5 minutes; check the endstops".into(),
+                ));
+            }
+            let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+            c.sleep(Duration::from_millis(50));
+        }
+        let c = self.client.as_mut().ok_or(LinkError::Disconnected)?;
+        if !c.status()?.control.homed {
+            return Err(LinkError::Protocol(
+                "homing did not finish; check the endstops".into(),
+            ));
+        }
+        Ok(())
+    }
+
     fn publish_now(&mut self) {
         self.publish();
     }
+}
+
+/// Where each of the entry's layers starts along its toolpath.
+fn layer_starts(entry: &JobEntry) -> Vec<u32> {
+    let mut layer_starts = Vec::new();
+    let mut last = usize::MAX;
+    for (p, start) in entry
+        .toolpath
+        .paths
+        .iter()
+        .zip(entry.toolpath.starts.iter())
+    {
+        if p.l != last {
+            last = p.l;
+            layer_starts.push(*start);
+        }
+    }
+    layer_starts
 }
 
 #[cfg(test)]

@@ -509,17 +509,22 @@ mod tests {
         );
     }
 
+    /// The camera page's refusal of `uploads` with `f` under `limits`.
+    fn refused(
+        uploads: &[crate::serve::design::Upload],
+        f: &super::CameraForm,
+        limits: crate::calibrate::camera::frames::Limits,
+    ) -> String {
+        super::camera(uploads, f, None, limits)
+            .expect_err("refused")
+            .message()
+            .to_string()
+    }
+
     #[test]
-    fn bad_frames_and_fields_are_refused_naming_them() {
-        use crate::serve::design::Upload;
+    fn bad_fields_are_refused_naming_them() {
         let frames = bundled_frames();
         let limits = super::CAMERA_LIMITS;
-        let refused = |uploads: &[Upload], f: &super::CameraForm, limits| {
-            super::camera(uploads, f, None, limits)
-                .expect_err("refused")
-                .message()
-                .to_string()
-        };
         let ok = form("30", "0.02");
         let e = refused(&[], &ok, limits);
         assert!(e.contains("choose the frames"), "{e}");
@@ -563,7 +568,12 @@ mod tests {
             e.starts_with("the region of interest leaves 5x100 px") && !e.contains("--"),
             "{e}"
         );
+    }
 
+    #[test]
+    fn bad_frames_are_refused_naming_them() {
+        let limits = super::CAMERA_LIMITS;
+        let ok = form("30", "0.02");
         // A corrupt frame, a frame of another size, another kind of file, a name twice.
         let mut bad = bundled_frames();
         bad[3].bytes = b"\x89PNG\r\n\x1a\nnot a picture".to_vec();
@@ -593,7 +603,14 @@ mod tests {
         bad[2].name = "frame_001.png".into();
         let e = refused(&bad, &ok, limits);
         assert!(e.contains("two frames are named frame_001.png"), "{e}");
+    }
 
+    #[test]
+    fn frames_over_the_limits_or_blank_are_refused_saying_so() {
+        use crate::serve::design::Upload;
+        let frames = bundled_frames();
+        let limits = super::CAMERA_LIMITS;
+        let ok = form("30", "0.02");
         // Over the frame and pixel limits (small ones here; the server's are the command's).
         let small = crate::calibrate::camera::frames::Limits {
             max_frames: 5,

@@ -316,194 +316,256 @@ pub fn write(
     dialect: &Dialect,
     host: &HostText,
 ) -> (String, GcodeStats) {
-    let inlets = config.inlets.len();
     let mut w = Writer {
         out: String::with_capacity(steps.len() * 24),
         pos: [f64::NAN; 3],
         f: f64::NAN,
         stats: GcodeStats::default(),
         dialect,
-        inlets,
+        inlets: config.inlets.len(),
         valves: 0,
         last_opened: None,
         dwell_carry_s: 0.0,
     };
-    let _ = writeln!(
-        w.out,
-        "; dollop G-code ({} dialect), sampled from the executor's run: moves of at most 0.25 mm at the speeds the executor used, valves where it switched them, dwells where it stood",
-        dialect.name()
-    );
     let total_s = estimated_seconds(steps, start);
     let layers = layer_heights(steps);
-    // PrusaSlicer's and Cura's forms, which OctoPrint, Moonraker and DWC read.
-    let _ = writeln!(
-        w.out,
-        "; estimated printing time (normal mode) = {}\n;TIME:{}\n;LAYER_COUNT:{}",
-        hms(total_s),
-        total_s.round() as u64,
-        layers.len()
-    );
-    for i in 0..inlets {
-        let name = material_names.get(i).map_or("", |s| s.as_str());
-        let port = dialect.port(i);
-        let what = match dialect.kind {
-            Kind::Marlin => format!(
-                "fan P{port} (M106/M107, queued with the moves: needs LASER_SYNCHRONOUS_M106_M107)"
-            ),
-            Kind::MarlinM42 => format!("board pin {port}"),
-            Kind::Klipper => format!("[output_pin {KLIPPER_PIN}{port}]"),
-            _ => format!("GPIO port {port}"),
-        };
-        let _ = writeln!(w.out, "; valve of inlet {i} ({name}) is {what}");
-    }
-    if let Some(text) = &host.start {
-        w.out.push_str("; start G-code (the user's)\n");
-        w.out.push_str(text.trim_end());
-        w.out.push_str("\n; end of start G-code\n");
-    }
-    w.out.push_str("G21\nG90\n");
-    if dialect.kind == Kind::RepRap {
-        w.out.push_str("M670 P");
-        for i in 0..inlets {
-            if i > 0 {
-                w.out.push(':');
-            }
-            let _ = write!(w.out, "{}", dialect.port(i));
-        }
-        w.out.push_str(" T0\n");
-    }
-    // Every valve closed, whatever the firmware had.
-    w.valves = ((1u64 << inlets.min(32)) - 1) as u32;
-    w.m42(0);
-    // To the start: Z first, then X and Y, at the travel speed (Z's top speed for Z).
-    let z_f = config.motion.max_speed_mm_s[2] as f64;
-    let travel_f = config.motion.travel_speed_mm_s as f64;
-    let mut zs = [f64::NAN, f64::NAN, start[2]];
-    // The first layer begins with the move to the start; the others where Z reaches them.
-    if !layers.is_empty() {
-        w.out.push_str(";LAYER:0\n");
-    }
-    w.out.push_str("G0 Z");
-    num(&mut w.out, start[2], 4);
-    w.out.push_str(" F");
-    num(&mut w.out, (z_f * 600.0).round() / 10.0, 1);
-    w.out.push('\n');
-    zs[2] = (start[2] * 10_000.0).round() / 10_000.0;
-    w.pos = zs;
-    w.f = (z_f * 600.0).round() / 10.0;
-    w.move_to(start, travel_f, true, None);
-
-    // RepRapFirmware: a valve change waiting for the next move's `P` word.
-    let mut pending: Option<u32> = None;
-    let mut counted = 0u32;
-    let mut exact = start;
-    let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
-    // Progress by the run's time: M73 at each whole percent, R in minutes left.
-    let mut elapsed = 0.0f64;
-    let mut percent = 0u32;
+    w.header(total_s, layers.len(), material_names, host);
+    w.go_to_start(config, start, !layers.is_empty());
+    let mut walk = Walk {
+        pending: None,
+        counted: 0,
+        exact: start,
+        elapsed: 0.0,
+        percent: 0,
+        total_s,
+        progress: host.progress,
+        layers: &layers,
+        next_layer: 1,
+    };
     if host.progress {
         let _ = writeln!(w.out, "M73 P0 R{}", (total_s / 60.0).ceil() as u64);
     }
-    let mut next_layer = 1usize;
     for st in steps {
-        if host.progress && total_s > 0.0 {
-            let p = ((elapsed / total_s) * 100.0).floor().min(99.0) as u32;
-            if p > percent {
-                percent = p;
-                let left = ((total_s - elapsed) / 60.0).ceil().max(0.0) as u64;
+        walk.progress(&mut w);
+        walk.clock(&mut w, st);
+        walk.write(&mut w, st);
+    }
+    if let Some(mask) = walk.pending.take() {
+        w.m42_at_rest(mask);
+    }
+    w.end(host)
+}
+
+impl Writer<'_> {
+    /// The header comments (dialect, estimated time, layer count, each valve's output),
+    /// the user's start G-code, units and absolute positioning, and RepRapFirmware's port
+    /// map.
+    fn header(&mut self, total_s: f64, layers: usize, material_names: &[String], host: &HostText) {
+        let dialect = self.dialect;
+        let _ = writeln!(
+            self.out,
+            "; dollop G-code ({} dialect), sampled from the executor's run: moves of at most 0.25 mm at the speeds the executor used, valves where it switched them, dwells where it stood",
+            dialect.name()
+        );
+        // PrusaSlicer's and Cura's forms, which OctoPrint, Moonraker and DWC read.
+        let _ = writeln!(
+            self.out,
+            "; estimated printing time (normal mode) = {}\n;TIME:{}\n;LAYER_COUNT:{}",
+            hms(total_s),
+            total_s.round() as u64,
+            layers
+        );
+        for i in 0..self.inlets {
+            let name = material_names.get(i).map_or("", |s| s.as_str());
+            let port = dialect.port(i);
+            let what = match dialect.kind {
+                Kind::Marlin => format!(
+                    "fan P{port} (M106/M107, queued with the moves: needs LASER_SYNCHRONOUS_M106_M107)"
+                ),
+                Kind::MarlinM42 => format!("board pin {port}"),
+                Kind::Klipper => format!("[output_pin {KLIPPER_PIN}{port}]"),
+                _ => format!("GPIO port {port}"),
+            };
+            let _ = writeln!(self.out, "; valve of inlet {i} ({name}) is {what}");
+        }
+        if let Some(text) = &host.start {
+            self.out.push_str("; start G-code (the user's)\n");
+            self.out.push_str(text.trim_end());
+            self.out.push_str("\n; end of start G-code\n");
+        }
+        self.out.push_str("G21\nG90\n");
+        if dialect.kind == Kind::RepRap {
+            self.out.push_str("M670 P");
+            for i in 0..self.inlets {
+                if i > 0 {
+                    self.out.push(':');
+                }
+                let _ = write!(self.out, "{}", dialect.port(i));
+            }
+            self.out.push_str(" T0\n");
+        }
+    }
+
+    /// Every valve closed, whatever the firmware had, then to the start: Z first, then X
+    /// and Y, at the travel speed (Z's top speed for Z). The first layer (if `layered`)
+    /// begins with this move.
+    fn go_to_start(&mut self, config: &Config, start: [f64; 3], layered: bool) {
+        self.valves = ((1u64 << self.inlets.min(32)) - 1) as u32;
+        self.m42(0);
+        let z_f = config.motion.max_speed_mm_s[2] as f64;
+        let travel_f = config.motion.travel_speed_mm_s as f64;
+        let mut zs = [f64::NAN, f64::NAN, start[2]];
+        // The first layer begins with the move to the start; the others where Z reaches them.
+        if layered {
+            self.out.push_str(";LAYER:0\n");
+        }
+        self.out.push_str("G0 Z");
+        num(&mut self.out, start[2], 4);
+        self.out.push_str(" F");
+        num(&mut self.out, (z_f * 600.0).round() / 10.0, 1);
+        self.out.push('\n');
+        zs[2] = (start[2] * 10_000.0).round() / 10_000.0;
+        self.pos = zs;
+        self.f = (z_f * 600.0).round() / 10.0;
+        self.move_to(start, travel_f, true, None);
+    }
+
+    /// A valve change made while the head stands: `M400` (nothing moves, so it costs no
+    /// time), then the change.
+    fn m42_at_rest(&mut self, mask: u32) {
+        self.flush_dwell();
+        self.out.push_str("M400\n");
+        self.m42(mask);
+    }
+
+    /// The last dwell, every valve closed, the user's end G-code and `; end of job`.
+    fn end(mut self, host: &HostText) -> (String, GcodeStats) {
+        self.flush_dwell();
+        if self.valves != 0 {
+            self.m42(0);
+        }
+        self.out.push_str("M400\n");
+        if host.progress {
+            self.out.push_str("M73 P100 R0\n");
+        }
+        if let Some(text) = &host.end {
+            self.out.push_str("; end G-code (the user's)\n");
+            self.out.push_str(text.trim_end());
+            self.out.push('\n');
+        }
+        self.out.push_str("; end of job\n");
+        self.stats.bytes = self.out.len();
+        (self.out, self.stats)
+    }
+}
+
+/// The walk through the steps: where the run is in its time and its layers, where the
+/// steps have the head, and what waits to be written.
+struct Walk<'a> {
+    /// RepRapFirmware: a valve change waiting for the next move's `P` word.
+    pending: Option<u32>,
+    /// The valves as the steps last set them (switches are counted from them).
+    counted: u32,
+    /// The head where the steps put it, unrounded.
+    exact: [f64; 3],
+    /// The run's time so far, s.
+    elapsed: f64,
+    /// The last progress written, %.
+    percent: u32,
+    total_s: f64,
+    /// Write progress (`M73`).
+    progress: bool,
+    /// Heights of the layers that hold beads, mm.
+    layers: &'a [f64],
+    /// The next layer to mark.
+    next_layer: usize,
+}
+
+impl Walk<'_> {
+    /// Progress by the run's time: M73 at each whole percent, R in minutes left.
+    fn progress(&mut self, w: &mut Writer) {
+        if self.progress && self.total_s > 0.0 {
+            let p = ((self.elapsed / self.total_s) * 100.0).floor().min(99.0) as u32;
+            if p > self.percent {
+                self.percent = p;
+                let left = ((self.total_s - self.elapsed) / 60.0).ceil().max(0.0) as u64;
                 let _ = writeln!(w.out, "M73 P{p} R{left}");
             }
         }
+    }
+
+    /// Marks a layer where a move reaches its height, and counts the step's time.
+    fn clock(&mut self, w: &mut Writer, st: &Step) {
+        let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
         match *st {
             Step::Move { to, v, .. } => {
-                if let Some(&z) = layers.get(next_layer) {
+                if let Some(&z) = self.layers.get(self.next_layer) {
                     if round(to[2]) >= z {
                         w.flush_dwell();
-                        let _ = writeln!(w.out, ";LAYER:{next_layer}");
-                        next_layer += 1;
+                        let _ = writeln!(w.out, ";LAYER:{}", self.next_layer);
+                        self.next_layer += 1;
                     }
                 }
                 let len = (0..3)
-                    .map(|a| (to[a] - exact[a]).powi(2))
+                    .map(|a| (to[a] - self.exact[a]).powi(2))
                     .sum::<f64>()
                     .sqrt();
                 if v > 0.0 {
-                    elapsed += len / v;
+                    self.elapsed += len / v;
                 }
             }
-            Step::Dwell(d) => elapsed += d.max(0.0),
+            Step::Dwell(d) => self.elapsed += d.max(0.0),
             Step::Valves(_) => {}
         }
+    }
+
+    /// Writes the step in the dialect's words.
+    fn write(&mut self, w: &mut Writer, st: &Step) {
+        let round = |v: f64| (v * 10_000.0).round() / 10_000.0;
         match *st {
             Step::Move { to, v, travel } => {
+                let exact = self.exact;
                 let len = ((to[0] - exact[0]).powi(2)
                     + (to[1] - exact[1]).powi(2)
                     + (to[2] - exact[2]).powi(2))
                 .sqrt();
-                exact = to;
+                self.exact = to;
                 if to.map(round) == w.pos {
                     // Shorter than the written precision: the executor's time there is
                     // standing time.
                     if !travel && v > 0.0 {
                         w.dwell(len / v);
                     }
-                    continue;
+                    return;
                 }
-                let p = pending.take();
+                let p = self.pending.take();
                 w.move_to(to, v, travel, p);
                 if let Some(mask) = p {
                     w.valves = mask;
                 }
             }
             Step::Valves(mask) => {
-                let opened = mask & !counted;
-                counted = mask;
+                let opened = mask & !self.counted;
+                self.counted = mask;
                 w.count_switch(opened);
-                match dialect.kind {
-                    Kind::RepRap => pending = Some(mask),
+                match w.dialect.kind {
+                    Kind::RepRap => self.pending = Some(mask),
                     Kind::Plain | Kind::Klipper | Kind::Marlin => {
                         w.flush_dwell();
                         w.m42(mask);
                     }
-                    Kind::MarlinM42 => {
-                        w.flush_dwell();
-                        w.out.push_str("M400\n");
-                        w.m42(mask);
-                    }
+                    Kind::MarlinM42 => w.m42_at_rest(mask),
                 }
             }
             Step::Dwell(s) => {
                 // The head stands: a waiting change is made now, as it stands.
-                if let Some(mask) = pending.take() {
-                    w.flush_dwell();
-                    w.out.push_str("M400\n");
-                    w.m42(mask);
+                if let Some(mask) = self.pending.take() {
+                    w.m42_at_rest(mask);
                 }
                 w.dwell(s);
             }
         }
     }
-    if let Some(mask) = pending.take() {
-        w.flush_dwell();
-        w.out.push_str("M400\n");
-        w.m42(mask);
-    }
-    w.flush_dwell();
-    if w.valves != 0 {
-        w.m42(0);
-    }
-    w.out.push_str("M400\n");
-    if host.progress {
-        w.out.push_str("M73 P100 R0\n");
-    }
-    if let Some(text) = &host.end {
-        w.out.push_str("; end G-code (the user's)\n");
-        w.out.push_str(text.trim_end());
-        w.out.push('\n');
-    }
-    w.out.push_str("; end of job\n");
-    w.stats.bytes = w.out.len();
-    (w.out, w.stats)
 }
 
 #[cfg(test)]

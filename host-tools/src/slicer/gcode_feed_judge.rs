@@ -145,36 +145,25 @@ pub fn simulate(
     let ops = parse(gcode);
     let mut model: FlowModel<f64, 4> = FlowModel::new(machine, initial);
     let dt = machine.dt();
-    let area = machine.bead_area;
-    let mut pos = [f64::NAN; 3];
-    let mut mask = 0u32;
-    let mut oi = 0usize;
-    let mut dwell_left = 0.0f64;
-    let mut s_print = 0.0f64;
+    let mut head = Head {
+        ops: &ops,
+        oi: 0,
+        pos: [f64::NAN; 3],
+        mask: 0,
+        dwell_left: 0.0,
+        s_print: 0.0,
+    };
     let mut landing = model.channel().landing();
     let mut landed: Vec<(f64, u8)> = Vec::new();
-    let mut window = (0.0f64, 0.0f64);
-    let mut range = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut t = 0.0;
-    // Valve commands act from the start of the next cycle, like the firmware's.
-    let apply_valves = |oi: &mut usize, mask: &mut u32, model: &mut FlowModel<f64, 4>| {
-        let mut changed = false;
-        while let Some(Op::Valve { port, on }) = ops.get(*oi) {
-            if *on {
-                *mask |= 1 << port;
-            } else {
-                *mask &= !(1 << port);
-            }
-            changed = true;
-            *oi += 1;
-        }
-        if changed {
-            model.command(*mask);
-        }
+    let mut section = Section {
+        area: machine.bead_area,
+        window: (0.0, 0.0),
+        range: (f64::INFINITY, f64::NEG_INFINITY),
     };
+    let mut t = 0.0;
     loop {
-        apply_valves(&mut oi, &mut mask, &mut model);
-        if oi >= ops.len() && model.q() <= 0.0 && t > 0.0 || t > max_time_s {
+        head.valves_ahead(&mut model);
+        if head.oi >= ops.len() && model.q() <= 0.0 && t > 0.0 || t > max_time_s {
             break;
         }
         let flow = match model.step() {
@@ -182,17 +171,80 @@ pub fn simulate(
             Err(_) => break,
         };
         let dv: f64 = flow.dv.mm3();
-        // Move for one cycle, through as many ops as it takes.
-        let s_before = s_print;
+        let s_before = head.s_print;
+        let mixed = head.cycle(dt, &mut model);
+        t += dt;
+        let now = model.channel().landing();
+        if now != landing {
+            landed.push((0.5 * (s_before + head.s_print), now));
+            landing = now;
+        }
+        section.cycle(dv, head.s_print - s_before, mixed);
+    }
+    let (worst, sum) = boundary_errors(design, &landed);
+    let range = section.range;
+    Figures {
+        boundaries: design.len(),
+        landed: landed.len(),
+        worst_boundary_mm: worst,
+        mean_boundary_mm: if design.is_empty() {
+            0.0
+        } else {
+            sum / design.len() as f64
+        },
+        section_range: range,
+        worst_section: (1.0 - range.0).max(range.1 - 1.0),
+        time_s: t,
+    }
+}
+
+/// The head following the G-code's operations, and the valves as they command them.
+struct Head<'a> {
+    ops: &'a [Op],
+    /// The next operation.
+    oi: usize,
+    /// Where the head is, mm (NaN until the first move puts it somewhere).
+    pos: [f64; 3],
+    /// The valves commanded.
+    mask: u32,
+    /// What is left of the dwell under way, s.
+    dwell_left: f64,
+    /// Path length moved with a valve open, mm.
+    s_print: f64,
+}
+
+impl Head<'_> {
+    /// Valve commands act from the start of the next cycle, like the firmware's: those
+    /// next in line go to `model` before it steps.
+    fn valves_ahead(&mut self, model: &mut FlowModel<f64, 4>) {
+        let mut changed = false;
+        while let Some(Op::Valve { port, on }) = self.ops.get(self.oi) {
+            if *on {
+                self.mask |= 1 << port;
+            } else {
+                self.mask &= !(1 << port);
+            }
+            changed = true;
+            self.oi += 1;
+        }
+        if changed {
+            model.command(self.mask);
+        }
+    }
+
+    /// Moves for one cycle of `dt`, through as many operations as it takes. True when the
+    /// cycle mixed printing with standing (a dwell, a valve change, a bead's start or end).
+    fn cycle(&mut self, dt: f64, model: &mut FlowModel<f64, 4>) -> bool {
         let mut budget = dt;
         let mut mixed = false;
-        let printing_at_start = mask != 0;
-        while budget > 0.0 && oi < ops.len() {
-            match ops[oi] {
+        let printing_at_start = self.mask != 0;
+        while budget > 0.0 && self.oi < self.ops.len() {
+            match self.ops[self.oi] {
                 Op::Move { to, v } => {
+                    let pos = &mut self.pos;
                     if pos[0].is_nan() {
-                        pos = to;
-                        oi += 1;
+                        *pos = to;
+                        self.oi += 1;
                         continue;
                     }
                     let d = ((to[0] - pos[0]).powi(2)
@@ -200,78 +252,91 @@ pub fn simulate(
                         + (to[2] - pos[2]).powi(2))
                     .sqrt();
                     let need = d / v.max(1e-6);
-                    let printing = mask != 0;
+                    let printing = self.mask != 0;
                     if printing != printing_at_start {
                         mixed = true;
                     }
                     if need <= budget {
                         budget -= need;
-                        pos = to;
+                        *pos = to;
                         if printing {
-                            s_print += d;
+                            self.s_print += d;
                         }
-                        oi += 1;
+                        self.oi += 1;
                     } else {
                         let f = budget * v / d;
                         for a in 0..3 {
                             pos[a] += (to[a] - pos[a]) * f;
                         }
                         if printing {
-                            s_print += budget * v;
+                            self.s_print += budget * v;
                         }
                         budget = 0.0;
                     }
                 }
                 Op::Dwell(s) => {
-                    if dwell_left <= 0.0 {
-                        dwell_left = s;
+                    if self.dwell_left <= 0.0 {
+                        self.dwell_left = s;
                     }
-                    let used = dwell_left.min(budget);
-                    dwell_left -= used;
+                    let used = self.dwell_left.min(budget);
+                    self.dwell_left -= used;
                     budget -= used;
                     mixed = true;
-                    if dwell_left <= 1e-12 {
-                        dwell_left = 0.0;
-                        oi += 1;
+                    if self.dwell_left <= 1e-12 {
+                        self.dwell_left = 0.0;
+                        self.oi += 1;
                     }
                 }
                 Op::Valve { port, on } => {
                     // Takes effect next cycle; the head keeps moving.
                     if on {
-                        mask |= 1 << port;
+                        self.mask |= 1 << port;
                     } else {
-                        mask &= !(1 << port);
+                        self.mask &= !(1 << port);
                     }
-                    model.command(mask);
+                    model.command(self.mask);
                     mixed = true;
-                    oi += 1;
+                    self.oi += 1;
                 }
             }
         }
-        t += dt;
-        let ds = s_print - s_before;
-        let now = model.channel().landing();
-        if now != landing {
-            landed.push((0.5 * (s_before + s_print), now));
-            landing = now;
-        }
+        mixed
+    }
+}
+
+/// The bead's cross-section over windows of `WINDOW_MM`, against the section `area`.
+struct Section {
+    area: f64,
+    /// Volume and length in the window so far, mm^3 and mm.
+    window: (f64, f64),
+    /// Smallest and largest cross-section / S over the windows.
+    range: (f64, f64),
+}
+
+impl Section {
+    /// Takes a cycle that landed `dv` over `ds` of print path; `mixed`, see `Head::cycle`.
+    fn cycle(&mut self, dv: f64, ds: f64, mixed: bool) {
         // Cross-section over whole cycles on a bead only: a cycle that starts or ends a
         // bead mixes printing and standing and says nothing about the bead.
         if ds > 0.0 && !mixed {
-            window.0 += dv;
-            window.1 += ds;
-            if window.1 >= WINDOW_MM {
-                let r = window.0 / (area * window.1);
-                range = (range.0.min(r), range.1.max(r));
-                window = (0.0, 0.0);
+            self.window.0 += dv;
+            self.window.1 += ds;
+            if self.window.1 >= WINDOW_MM {
+                let r = self.window.0 / (self.area * self.window.1);
+                self.range = (self.range.0.min(r), self.range.1.max(r));
+                self.window = (0.0, 0.0);
             }
         } else {
-            window = (0.0, 0.0);
+            self.window = (0.0, 0.0);
         }
     }
-    // Each design boundary against the nearest landed change to the same material.
+}
+
+/// Each design boundary against the nearest landed change to the same material: the
+/// largest distance and the sum of them, mm.
+fn boundary_errors(design: &[(f64, u8)], landed: &[(f64, u8)]) -> (f64, f64) {
     let mut by_material: Vec<Vec<f64>> = vec![Vec::new(); 256];
-    for &(s, m) in &landed {
+    for &(s, m) in landed {
         by_material[m as usize].push(s);
     }
     for v in by_material.iter_mut() {
@@ -291,19 +356,7 @@ pub fn simulate(
         worst = worst.max(near);
         sum += near;
     }
-    Figures {
-        boundaries: design.len(),
-        landed: landed.len(),
-        worst_boundary_mm: worst,
-        mean_boundary_mm: if design.is_empty() {
-            0.0
-        } else {
-            sum / design.len() as f64
-        },
-        section_range: range,
-        worst_section: (1.0 - range.0).max(range.1 - 1.0),
-        time_s: t,
-    }
+    (worst, sum)
 }
 
 #[cfg(test)]

@@ -175,27 +175,7 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
         .iter()
         .map(|s| median(&s.iter().map(|s| s.width()).collect::<Vec<_>>()))
         .collect();
-    let lk = LkOptions::default();
-    let mut speed_raw = Vec::with_capacity(imgs.len() - 1);
-    let mut drift = Vec::with_capacity(imgs.len() - 1);
-    let mut tracked = Vec::with_capacity(imgs.len() - 1);
-    let mut prev = Pyramid::new(&imgs[0], lk.levels);
-    for i in 0..imgs.len() - 1 {
-        let next = Pyramid::new(&imgs[i + 1], lk.levels);
-        let (dxs, dys) = track_inside(&prev, &next, &sides[i], lk);
-        tracked.push(dys.len());
-        let ok = dys.len() >= 5;
-        speed_raw.push(match median(&dys) {
-            Some(v) if ok => v * scale * fps,
-            _ => f64::NAN,
-        });
-        drift.push(match median(&dxs) {
-            Some(v) if ok => v * scale * fps,
-            _ => f64::NAN,
-        });
-        prev = next;
-        bar.inc(1);
-    }
+    let (speed_raw, drift, tracked) = track_pairs(&imgs, &sides, (scale, fps), &bar);
     bar.finish_and_clear();
     let width_raw: Vec<f64> = width_px
         .iter()
@@ -246,6 +226,40 @@ pub fn calibrate(dir: &Path, o: &Options) -> Result<Calibration, CalError> {
     };
     cal.verdicts = verdicts(&cal, v_signed, o);
     Ok(cal)
+}
+
+/// Each frame pair's filament speed and sideways drift (mm/s; NaN where fewer than five
+/// points were tracked) and the points tracked, from the texture inside the filament
+/// between `sides`, with `scale` mm per px at `fps` frames per second. Ticks `bar` once
+/// a pair.
+fn track_pairs(
+    imgs: &[image::GrayImage],
+    sides: &[Vec<edges::Sides>],
+    (scale, fps): (f64, f64),
+    bar: &indicatif::ProgressBar,
+) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
+    let lk = LkOptions::default();
+    let mut speed_raw = Vec::with_capacity(imgs.len() - 1);
+    let mut drift = Vec::with_capacity(imgs.len() - 1);
+    let mut tracked = Vec::with_capacity(imgs.len() - 1);
+    let mut prev = Pyramid::new(&imgs[0], lk.levels);
+    for i in 0..imgs.len() - 1 {
+        let next = Pyramid::new(&imgs[i + 1], lk.levels);
+        let (dxs, dys) = track_inside(&prev, &next, &sides[i], lk);
+        tracked.push(dys.len());
+        let ok = dys.len() >= 5;
+        speed_raw.push(match median(&dys) {
+            Some(v) if ok => v * scale * fps,
+            _ => f64::NAN,
+        });
+        drift.push(match median(&dxs) {
+            Some(v) if ok => v * scale * fps,
+            _ => f64::NAN,
+        });
+        prev = next;
+        bar.inc(1);
+    }
+    (speed_raw, drift, tracked)
 }
 
 /// The moves (x, y in px) from `prev` to `next` of the texture inside the filament: on
