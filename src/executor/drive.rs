@@ -97,9 +97,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 Phase::Print { stopping } => {
                     self.head += dv_left;
                     dv_left = Vol::ZERO;
-                    if !self.follow_path(stopping, flow.q)?
-                        && !(stopping && self.tail_ran_out(flow.q))
-                    {
+                    let ended = self.follow_path(stopping, flow.q)?
+                        || (stopping && self.tail_ran_out(flow.q));
+                    if !ended {
                         break;
                     }
                 }
