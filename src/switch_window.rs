@@ -118,12 +118,18 @@ pub fn switch_half<R: Real, const N: usize>(
             _ => 0.0,
         };
         let v = v_c.max(flushed.min(v));
-        follow = !turns.clone().take(TURNS_AHEAD).any(|t| {
-            let (x, y) = (t.to[0] - t.from[0], t.to[1] - t.from[1]);
-            // A turn of more than about 6 degrees (segments split at a boundary run on
-            // straight, with no fillet).
-            t.at < reach && t.radius * whole < v * v && x * x + y * y > 0.01
-        });
+        // The turns come in path order: past the reach none counts (a decision's cost, on
+        // the soft machine's worst tick).
+        follow = !turns
+            .clone()
+            .take(TURNS_AHEAD)
+            .take_while(|t| t.at < reach)
+            .any(|t| {
+                let (x, y) = (t.to[0] - t.from[0], t.to[1] - t.from[1]);
+                // A turn of more than about 6 degrees (segments split at a boundary run on
+                // straight, with no fillet).
+                t.at < reach && t.radius * whole < v * v && x * x + y * y > 0.01
+            });
         if !follow {
             // The box then: a quarter of the contents' motion bound left to them (their
             // resistance changes as they move: the head's speed by at most `v_flow_max`
