@@ -105,19 +105,7 @@ pub fn switch_half<R: Real, const N: usize>(
         let reach = v * (delay + tau_r.max(tau_d));
         // The speed the head meets a turn at: the flow's now, or the opening paste's
         // through a channel full of it (before the flush it may pass faster, briefly).
-        let total: f32 = model
-            .channel()
-            .in_channel()
-            .iter()
-            .map(|x| x.mm3::<f32>())
-            .sum();
-        let flushed = match open {
-            Some(inlet) if inlet.law.a.to_f32() * total > 0.0 => {
-                inlet.supply_pa.to_f32() / (inlet.law.a.to_f32() * total) / s
-            }
-            _ => 0.0,
-        };
-        let v = v_c.max(flushed.min(v));
+        let v = v_c.max(flushed(model, open, s).map_or(0.0, |f| f.min(v)));
         // The turns come in path order: past the reach none counts (a decision's cost, on
         // the soft machine's worst tick).
         follow = !turns
@@ -191,18 +179,7 @@ pub fn switch_half<R: Real, const N: usize>(
             .map_or(0.0, |_| tau_r)
             .max(close.map_or(0.0, |_| tau_d));
     let near = v * (delay + settle + w);
-    let total: f32 = model
-        .channel()
-        .in_channel()
-        .iter()
-        .map(|x| x.mm3::<f32>())
-        .sum();
-    let v_turn = match open {
-        Some(inlet) if inlet.law.a.to_f32() * total > 0.0 => {
-            (inlet.supply_pa.to_f32() / (inlet.law.a.to_f32() * total) / s).min(v)
-        }
-        _ => v,
-    };
+    let v_turn = flushed(model, open, s).map_or(v, |f| f.min(v));
     w = w.max(turn_window(v_turn, near, limit, turns));
     let cycles = w / m.dt().to_f32();
     let half = m.ramp_cycles / 2;
@@ -211,6 +188,25 @@ pub fn switch_half<R: Real, const N: usize>(
     }
     let h = (libm::ceilf(cycles) as u32) / 2;
     Some((h.max(min_half(m, limit)), follow))
+}
+
+/// The head's speed with the channel full of the opening paste `open` (mm/s, bead section
+/// `s`): its supply through the channel's whole content at that paste's resistance. None
+/// with no paste opening, or an empty channel.
+fn flushed<R: Real, const N: usize>(
+    model: &FlowModel<R, N>,
+    open: Option<&crate::config::Inlet<R>>,
+    s: f32,
+) -> Option<f32> {
+    let total: f32 = model
+        .channel()
+        .in_channel()
+        .iter()
+        .map(|x| x.mm3::<f32>())
+        .sum();
+    let inlet = open?;
+    let a = inlet.law.a.to_f32() * total;
+    (a > 0.0).then(|| inlet.supply_pa.to_f32() / a / s)
 }
 
 /// A fillet of the bead ahead: `radius` mm, turning the head from unit `from` to unit
