@@ -171,8 +171,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// Ramped, and the valves' flow changes are first-order ones that
     /// `crate::switch_window` sizes a window for at each decision.
     sizing: bool,
-    /// The head's follower of a mixed channel's flow (`crate::flow_follow`), 4 KiB:
-    /// last, so that the fields the tick reads keep their short offsets.
+    /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
+    /// 600 B: last, so that the fields the tick reads keep their short offsets.
     follow: crate::flow_follow::FlowFollow,
 }
 
