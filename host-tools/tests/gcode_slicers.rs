@@ -506,22 +506,10 @@ fn printed_mm(commands: &[Command]) -> [f64; 2] {
     mm
 }
 
-/// The bundled cube shell + ball (`host-tools/designs/`), scaled by `CUBE_SCALE` (the
-/// ball stays inside the shell), sliced by both slicers (PrusaSlicer with its default
-/// Arachne perimeters and with classic ones) and run against the reference plant: the
-/// wrong material at each change and the plant's section against each bead's own are
-/// `run_both`'s bounds. Arachne's variable-width perimeters make beads whose moves ask
-/// different sections; each is laid at their mean (job format 2 has one section per
-/// bead), and that spread is printed as a figure, not checked. The perimeters must be
-/// laid at their width's section. Every slicer must print the ball: at least two material
-/// changes, and a length in material 1 at least half the ball's share of the volume (the
-/// beads are of one section, so lengths go as volumes). PrusaSlicer printed it only once
-/// the AMF shared its corners (see `amf`).
-#[test]
-fn the_cube_shell_and_ball_run_against_the_plant() {
-    let dir = tempfile::tempdir().unwrap();
+/// The bundled cube shell + ball (`host-tools/designs/`) scaled by `scale` (the ball stays
+/// inside the shell), and the ball's volume over the shell's.
+fn cube_volumes(scale: f64) -> (Volumes, f64) {
     let designs = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
-    let scale = cube_scale();
     let mut volumes = Volumes::new();
     for (file, m) in [("cube-shell.stl", 0u8), ("cube-ball.stl", 1)] {
         let mesh = slicer::mesh::read_stl(&designs.join(file)).unwrap();
@@ -529,8 +517,57 @@ fn the_cube_shell_and_ball_run_against_the_plant() {
         let tris = mesh.triangles.iter().map(|t| [v(t[0]), v(t[1]), v(t[2])]);
         volumes.push((tris.collect(), m));
     }
-    // The ball's volume over the shell's.
     let share = enclosed_mm3(&volumes[1].0) / enclosed_mm3(&volumes[0].0);
+    (volumes, share)
+}
+
+/// `run_both` on a cube shell + ball, then what every slicer's cube must show: the ball
+/// printed (at least two material changes, and a length in material 1 at least half the
+/// ball's `share` of the shell's: the beads are of one section, so lengths go as volumes),
+/// and the perimeters laid at their width's section.
+fn check_cube(label: &str, gcode: &str, share: f64) {
+    let t0 = std::time::Instant::now();
+    let i = run_both(label, gcode);
+    let mm = printed_mm(&i.sliced.commands);
+    println!(
+        "{label}: {} beads, {:.0} mm in material 0, {:.0} mm in material 1, run in {:.1} s",
+        i.summary.body.beads,
+        mm[0],
+        mm[1],
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(i.summary.body.switches >= 2, "{label}: no ball?");
+    assert!(
+        mm[1] >= 0.5 * share * mm[0],
+        "{label}: the ball's {:.0} mm of bead, under half its share ({share:.3}) of the shell's {:.0} mm",
+        mm[1],
+        mm[0]
+    );
+    let want = if label.starts_with("Cura") {
+        cura_section(PERIMETER_MM)
+    } else {
+        slic3r_section(PERIMETER_MM)
+    };
+    assert!(
+        laid(&i)
+            .iter()
+            .any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
+        "{label}: no bead at {want:.4} mm^2"
+    );
+}
+
+/// The cube shell + ball scaled by `CUBE_SCALE`, sliced by both slicers (PrusaSlicer with
+/// its default Arachne perimeters and with classic ones) and run against the reference
+/// plant: the wrong material at each change and the plant's section against each bead's
+/// own are `run_both`'s bounds, the ball and the perimeters `check_cube`'s. Arachne's
+/// variable-width perimeters make beads whose moves ask different sections; each is laid
+/// at their mean (job format 2 has one section per bead), and that spread is printed as a
+/// figure, not checked. PrusaSlicer printed the ball only once the AMF shared its corners
+/// (see `amf`).
+#[test]
+fn the_cube_shell_and_ball_run_against_the_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let (volumes, share) = cube_volumes(cube_scale());
     let mut gcodes = Vec::new();
     if have("prusa-slicer") {
         gcodes.push((
@@ -553,35 +590,19 @@ fn the_cube_shell_and_ball_run_against_the_plant() {
         }
     }
     for (label, gcode) in gcodes {
-        let t0 = std::time::Instant::now();
-        let i = run_both(label, &gcode);
-        let mm = printed_mm(&i.sliced.commands);
-        println!(
-            "{label}: {} beads, {:.0} mm in material 0, {:.0} mm in material 1, run in {:.1} s",
-            i.summary.body.beads,
-            mm[0],
-            mm[1],
-            t0.elapsed().as_secs_f64()
-        );
-        assert!(i.summary.body.switches >= 2, "{label}: no ball?");
-        assert!(
-            mm[1] >= 0.5 * share * mm[0],
-            "{label}: the ball's {:.0} mm of bead, under half its share ({share:.3}) of the shell's {:.0} mm",
-            mm[1],
-            mm[0]
-        );
-        let cura = label.starts_with("Cura");
-        // The perimeters are laid at their width's section.
-        let want = if cura {
-            cura_section(PERIMETER_MM)
-        } else {
-            slic3r_section(PERIMETER_MM)
-        };
-        assert!(
-            laid(&i)
-                .iter()
-                .any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
-            "{label}: no bead at {want:.4} mm^2"
-        );
+        check_cube(label, &gcode, share);
     }
+}
+
+/// The full-size cube (20 mm, 33 layers, about 19.6 m of bead), once, by PrusaSlicer with
+/// its default perimeters: a test of its own so that it runs beside the others.
+#[test]
+fn the_full_size_cube_runs_against_the_plant() {
+    if !have("prusa-slicer") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (volumes, share) = cube_volumes(1.0);
+    let label = "PrusaSlicer full-size cube+ball";
+    check_cube(label, &prusa(dir.path(), "cube-full", &volumes, &[]), share);
 }
