@@ -1,15 +1,16 @@
 //! Real slicers in, issue 26: two-material models (two halves of a plate, a chessboard of
-//! squares) sliced by PrusaSlicer's and CuraEngine's own command lines with the committed
-//! settings (`tests/data/slicers/`: two tools on one 0.8 mm nozzle, no wipe or prime
-//! tower, no retraction), imported, and run by the executor against the reference plant.
-//! Every region must start in its own material: at most 0.05 mm of the wrong one at each
-//! bead start, along the path. Every bead keeps the section its E asks (job format 2's
-//! per-bead sections): the perimeters are sliced 0.9 mm wide and the infill 0.8 mm, the
-//! job must carry both sections, no bead's moves may ask more than 2 % from the section
-//! it is laid at, and the plant's section stays within 2 % of each bead's own over 0.2 mm.
-//! Beside it, the same G-code run "as written" (valves switched at the `T`, as a G-code
-//! firmware does) on the firmware model and the same plant: its wrong-material length is
-//! printed, and must be worse.
+//! squares, the bundled cube shell + ball at half and full size) sliced by PrusaSlicer's
+//! and CuraEngine's own command lines with the committed settings (`tests/data/slicers/`:
+//! two tools on one 0.8 mm nozzle, no wipe or prime tower, no retraction), imported, and
+//! run by the executor against the reference plant. Every region must start in its own
+//! material: at most 0.05 mm of the wrong one at each bead start, along the path. Every
+//! bead keeps the section its E asks (job format 2's per-bead sections): the perimeters
+//! are sliced 0.9 mm wide and the infill 0.8 mm, the job must carry both sections, no
+//! bead's moves may ask more than 2 % from the section it is laid at, and the plant's
+//! section stays within 2 % of each bead's own over 0.2 mm. Beside it, the same G-code
+//! run "as written" (valves switched at the `T`, as a G-code firmware does) on the
+//! firmware model and the same plant: its wrong-material length is printed, and must be
+//! worse.
 //!
 //! The slicers are Debian's `prusa-slicer` and `cura-engine` (`.ci/run` installs them);
 //! CuraEngine needs Cura's machine definitions (`fdmprinter.def.json`), found in
