@@ -1,15 +1,16 @@
 //! Real slicers in, issue 26: two-material models (two halves of a plate, a chessboard of
-//! squares) sliced by PrusaSlicer's and CuraEngine's own command lines with the committed
-//! settings (`tests/data/slicers/`: two tools on one 0.8 mm nozzle, no wipe or prime
-//! tower, no retraction), imported, and run by the executor against the reference plant.
-//! Every region must start in its own material: at most 0.05 mm of the wrong one at each
-//! bead start, along the path. Every bead keeps the section its E asks (job format 2's
-//! per-bead sections): the perimeters are sliced 0.9 mm wide and the infill 0.8 mm, the
-//! job must carry both sections, no bead's moves may ask more than 2 % from the section
-//! it is laid at, and the plant's section stays within 2 % of each bead's own over 0.2 mm.
-//! Beside it, the same G-code run "as written" (valves switched at the `T`, as a G-code
-//! firmware does) on the firmware model and the same plant: its wrong-material length is
-//! printed, and must be worse.
+//! squares, the bundled cube shell + ball at half and full size) sliced by PrusaSlicer's
+//! and CuraEngine's own command lines with the committed settings (`tests/data/slicers/`:
+//! two tools on one 0.8 mm nozzle, no wipe or prime tower, no retraction), imported, and
+//! run by the executor against the reference plant. Every region must start in its own
+//! material: at most 0.05 mm of the wrong one at each bead start, along the path. Every
+//! bead keeps the section its E asks (job format 2's per-bead sections): the perimeters
+//! are sliced 0.9 mm wide and the infill 0.8 mm, the job must carry both sections, no
+//! bead's moves may ask more than 2 % from the section it is laid at, and the plant's
+//! section stays within 2 % of each bead's own over 0.2 mm. Beside it, the same G-code
+//! run "as written" (valves switched at the `T`, as a G-code firmware does) on the
+//! firmware model and the same plant: its wrong-material length is printed, and must be
+//! worse.
 //!
 //! The slicers are Debian's `prusa-slicer` and `cura-engine` (`.ci/run` installs them);
 //! CuraEngine needs Cura's machine definitions (`fdmprinter.def.json`), found in
@@ -122,7 +123,13 @@ fn boxes_volumes(boxes: &[Part]) -> Volumes {
         .collect()
 }
 
-/// PrusaSlicer reads an AMF whose volumes name their extruder (1-based).
+/// PrusaSlicer reads an AMF whose volumes name their extruder (1-based). Each volume's
+/// corners are written once and shared by index: PrusaSlicer 2.5 keeps an AMF's indices as
+/// given (it welds an STL's corners on load, not an AMF's) and links a layer's section
+/// lines into loops through the triangles' shared corners. A triangle soup leaves it only
+/// its gap-closing fallback, which closes any piece shorter than 2 mm on itself and drops
+/// it: the cube's 20 mm walls survive, the sphere's short pieces do not, so the shell was
+/// printed solid and the ball on 1 of 33 layers at full size, none at half.
 fn amf(volumes: &Volumes) -> String {
     let mut verts = String::new();
     let mut vols = String::new();
@@ -132,15 +139,20 @@ fn amf(volumes: &Volumes) -> String {
             "<volume><metadata type=\"slic3r.extruder\">{}</metadata>",
             m + 1
         );
+        // The corners are welded on their exact coordinates, within this volume.
+        let mut index = std::collections::HashMap::new();
         for t in tris {
             vols += "<triangle>";
             for (k, p) in t.iter().enumerate() {
-                verts += &format!(
-                    "<vertex><coordinates><x>{}</x><y>{}</y><z>{}</z></coordinates></vertex>\n",
-                    p[0], p[1], p[2]
-                );
-                vols += &format!("<v{}>{}</v{}>", k + 1, n, k + 1);
-                n += 1;
+                let i = *index.entry(p.map(f64::to_bits)).or_insert_with(|| {
+                    verts += &format!(
+                        "<vertex><coordinates><x>{}</x><y>{}</y><z>{}</z></coordinates></vertex>\n",
+                        p[0], p[1], p[2]
+                    );
+                    n += 1;
+                    n - 1
+                });
+                vols += &format!("<v{}>{}</v{}>", k + 1, i, k + 1);
             }
             vols += "</triangle>\n";
         }
@@ -459,7 +471,30 @@ fn prusaslicer_and_cura_multi_material_gcode_lands_each_region_in_its_material()
 
 /// The bundled cube shell + ball is scaled by this for its run against the plant (10 mm,
 /// 17 layers, about 2.4 m of bead per slicer, where the full 20 mm cube has about 20 m).
+/// `DOLLOP_CUBE_SCALE` overrides it for a run by hand (1 is the full size).
 const CUBE_SCALE: f64 = 0.5;
+
+fn cube_scale() -> f64 {
+    match std::env::var("DOLLOP_CUBE_SCALE") {
+        Ok(v) => v
+            .parse()
+            .ok()
+            .filter(|s: &f64| *s > 0.0 && *s <= 1.0)
+            .unwrap_or_else(|| panic!("DOLLOP_CUBE_SCALE={v}: a scale in (0, 1]")),
+        Err(_) => CUBE_SCALE,
+    }
+}
+
+/// Volume enclosed by closed, outward-facing triangles, mm^3.
+fn enclosed_mm3(tris: &[[[f64; 3]; 3]]) -> f64 {
+    tris.iter()
+        .map(|[a, b, c]| {
+            (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]))
+                / 6.0
+        })
+        .sum()
+}
 
 /// Length printed in each material, mm.
 fn printed_mm(commands: &[Command]) -> [f64; 2] {
@@ -472,28 +507,68 @@ fn printed_mm(commands: &[Command]) -> [f64; 2] {
     mm
 }
 
-/// The bundled cube shell + ball (`host-tools/designs/`), scaled by `CUBE_SCALE` (the
-/// ball stays inside the shell), sliced by both slicers (PrusaSlicer with its default
-/// Arachne perimeters and with classic ones) and run against the reference plant: the
-/// wrong material at each change and the plant's section against each bead's own are
-/// `run_both`'s bounds. Arachne's variable-width perimeters make beads whose moves ask
-/// different sections; each is laid at their mean (job format 2 has one section per
-/// bead), and that spread is printed as a figure, not checked. The perimeters must be
-/// laid at their width's section, and Cura's ball must be printed in material 1.
-/// PrusaSlicer 2.5 prints the ball enclosed in the shell on no layer at this scale (on 2
-/// of 33 at full size; the ball alone slices whole): its two runs have no material
-/// change, which the test prints.
-#[test]
-fn the_cube_shell_and_ball_run_against_the_plant() {
-    let dir = tempfile::tempdir().unwrap();
+/// The bundled cube shell + ball (`host-tools/designs/`) scaled by `scale` (the ball stays
+/// inside the shell), and the ball's volume over the shell's.
+fn cube_volumes(scale: f64) -> (Volumes, f64) {
     let designs = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
     let mut volumes = Volumes::new();
     for (file, m) in [("cube-shell.stl", 0u8), ("cube-ball.stl", 1)] {
         let mesh = slicer::mesh::read_stl(&designs.join(file)).unwrap();
-        let v = |i: u32| mesh.vertices[i as usize].map(|c| c as f64 * CUBE_SCALE);
+        let v = |i: u32| mesh.vertices[i as usize].map(|c| c as f64 * scale);
         let tris = mesh.triangles.iter().map(|t| [v(t[0]), v(t[1]), v(t[2])]);
         volumes.push((tris.collect(), m));
     }
+    let share = enclosed_mm3(&volumes[1].0) / enclosed_mm3(&volumes[0].0);
+    (volumes, share)
+}
+
+/// `run_both` on a cube shell + ball, then what every slicer's cube must show: the ball
+/// printed (at least two material changes, and a length in material 1 at least half the
+/// ball's `share` of the shell's: the beads are of one section, so lengths go as volumes),
+/// and the perimeters laid at their width's section.
+fn check_cube(label: &str, gcode: &str, share: f64) {
+    let t0 = std::time::Instant::now();
+    let i = run_both(label, gcode);
+    let mm = printed_mm(&i.sliced.commands);
+    println!(
+        "{label}: {} beads, {:.0} mm in material 0, {:.0} mm in material 1, run in {:.1} s",
+        i.summary.body.beads,
+        mm[0],
+        mm[1],
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(i.summary.body.switches >= 2, "{label}: no ball?");
+    assert!(
+        mm[1] >= 0.5 * share * mm[0],
+        "{label}: the ball's {:.0} mm of bead, under half its share ({share:.3}) of the shell's {:.0} mm",
+        mm[1],
+        mm[0]
+    );
+    let want = if label.starts_with("Cura") {
+        cura_section(PERIMETER_MM)
+    } else {
+        slic3r_section(PERIMETER_MM)
+    };
+    assert!(
+        laid(&i)
+            .iter()
+            .any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
+        "{label}: no bead at {want:.4} mm^2"
+    );
+}
+
+/// The cube shell + ball scaled by `CUBE_SCALE`, sliced by both slicers (PrusaSlicer with
+/// its default Arachne perimeters and with classic ones) and run against the reference
+/// plant: the wrong material at each change and the plant's section against each bead's
+/// own are `run_both`'s bounds, the ball and the perimeters `check_cube`'s. Arachne's
+/// variable-width perimeters make beads whose moves ask different sections; each is laid
+/// at their mean (job format 2 has one section per bead), and that spread is printed as a
+/// figure, not checked. PrusaSlicer printed the ball only once the AMF shared its corners
+/// (see `amf`).
+#[test]
+fn the_cube_shell_and_ball_run_against_the_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let (volumes, share) = cube_volumes(cube_scale());
     let mut gcodes = Vec::new();
     if have("prusa-slicer") {
         gcodes.push((
@@ -516,32 +591,19 @@ fn the_cube_shell_and_ball_run_against_the_plant() {
         }
     }
     for (label, gcode) in gcodes {
-        let t0 = std::time::Instant::now();
-        let i = run_both(label, &gcode);
-        let mm = printed_mm(&i.sliced.commands);
-        println!(
-            "{label}: {} beads, {:.0} mm in material 0, {:.0} mm in material 1, run in {:.1} s",
-            i.summary.body.beads,
-            mm[0],
-            mm[1],
-            t0.elapsed().as_secs_f64()
-        );
-        let cura = label.starts_with("Cura");
-        if cura {
-            assert!(i.summary.body.switches >= 2, "{label}");
-            assert!(mm[1] > 0.05 * mm[0], "{label}: no ball? {mm:?}");
-        }
-        // The perimeters are laid at their width's section.
-        let want = if cura {
-            cura_section(PERIMETER_MM)
-        } else {
-            slic3r_section(PERIMETER_MM)
-        };
-        assert!(
-            laid(&i)
-                .iter()
-                .any(|s| (s / want - 1.0).abs() <= SECTION / 2.0),
-            "{label}: no bead at {want:.4} mm^2"
-        );
+        check_cube(label, &gcode, share);
     }
+}
+
+/// The full-size cube (20 mm, 33 layers, about 19.6 m of bead), once, by PrusaSlicer with
+/// its default perimeters: a test of its own so that it runs beside the others.
+#[test]
+fn the_full_size_cube_runs_against_the_plant() {
+    if !have("prusa-slicer") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (volumes, share) = cube_volumes(1.0);
+    let label = "PrusaSlicer full-size cube+ball";
+    check_cube(label, &prusa(dir.path(), "cube-full", &volumes, &[]), share);
 }
