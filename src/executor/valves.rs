@@ -197,24 +197,30 @@ impl<R: Real, const N: usize> Executor<R, N> {
     #[inline(never)]
     pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
         let (head, inv_s) = (self.head, self.inv_s);
-        let seg = |i: &Item<R>| match i {
-            Item::Seg(s) => Some(*s),
-            _ => None,
-        };
         let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
         // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
-        let turns = (self.plan.iter().map_while(seg))
-            .zip(self.plan.iter().skip(1).map_while(seg))
-            .take_while(|(a, _)| !a.last)
-            .filter_map(|(a, b)| {
-                let f = a.fillet?;
-                Some(crate::switch_window::Turn {
+        // By reference, in one pass: a segment is 23 words, and copying each twice a turn
+        // (as two zipped iterators did) was a good part of a decision's cost.
+        let mut items = self.plan.iter();
+        let mut prev = match items.next() {
+            Some(Item::Seg(s)) => Some(s),
+            _ => None,
+        };
+        let turns = core::iter::from_fn(move || loop {
+            let a = prev.filter(|a| !a.last)?;
+            let Some(Item::Seg(b)) = items.next() else {
+                return None;
+            };
+            prev = Some(b);
+            if let Some(f) = a.fillet {
+                return Some(crate::switch_window::Turn {
                     at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
                     radius: f.radius.to_f32(),
                     from: f2(a.dir),
                     to: f2(b.dir),
-                })
-            });
+                });
+            }
+        });
         let (h, follow) = crate::switch_window::switch_half(
             &self.machine,
             &self.model,
