@@ -246,7 +246,8 @@ impl FlowFollow {
             self.rise = v;
             return [0.0; 2];
         }
-        let vm = libm::sqrtf(dx * dx + dy * dy);
+        let d2 = dx * dx + dy * dy;
+        let vm = libm::sqrtf(d2);
         if self.dir == [0.0; 2] {
             // The head's speed and direction, as the mean had them, where it starts.
             if vm <= 0.05 {
@@ -268,11 +269,12 @@ impl FlowFollow {
         // The turn's share: the mean's own acceleration across the path (its speed times
         // its direction's turn a frame); the speed's change gets what is left of the
         // whole limit, by the vector sum.
+        // Squared, so that the usual tick takes no root for it (a software `sqrtf` is
+        // about 60 instructions on the chip).
         let (tx, ty) = (self.heading[0] - before[0], self.heading[1] - before[1]);
-        let turn = libm::sqrtf(tx * tx + ty * ty);
-        let across = vm * turn;
+        let turn2 = tx * tx + ty * ty;
         let whole = self.a * WHOLE;
-        let left = whole * whole - across * across;
+        let left = whole * whole - d2 * turn2;
         let slew = if left > self.a * self.a {
             self.a
         } else {
@@ -302,8 +304,8 @@ impl FlowFollow {
             // The lag lies along the path's tangent, which turns: a lag changing at `de`
             // moves the head across the path at `2 de turn` on top of the turn's own.
             // Within what the turn leaves, the head keeps nearer the mean's speed.
-            if turn > 0.0 {
-                let most = libm::sqrtf(left.max(0.0)) / (2.0 * turn);
+            if turn2 > 0.0 {
+                let most = libm::sqrtf(left.max(0.0) / (4.0 * turn2));
                 self.u = self.u.min(vm + most).max(vm - most).max(0.0);
             }
         } else {
