@@ -24,7 +24,8 @@ pub(super) struct Seg<R> {
     pub(super) u_end: Vol,
     pub(super) last: bool,
     pub(super) index: u32,
-    /// 1 / the bead's section (`Command::Section`), 1/mm^2: only the inverse, so that a
+    /// 1 / the section this segment is laid at (`Command::Section`; a stair of a change
+    /// of section mid-bead, `crate::section_taper`), 1/mm^2: only the inverse, so that a
     /// segment (copied as each bead starts) grows by one word.
     pub(super) inv_s: R,
 }
@@ -99,6 +100,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     Some(prev) => {
                         let (seg, t) = self.finalise(prev, Some((dir, length)));
                         let _ = self.plan.push_back(Item::Seg(seg));
+                        // A section asked since the segment before: this one starts the
+                        // staircase to it (`crate::section_taper`).
+                        if self.taper.target() != self.plan_s.1 {
+                            self.start_taper();
+                        }
                         if seg.material != material {
                             let mid = seg.u_arc + Vol((seg.u_end - seg.u_arc).0 / 2);
                             let _ = self.boundaries.push_back((mid, material));
@@ -108,6 +114,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                         (t, seg.u_end)
                     }
                     None => {
+                        // A bead starts at its section at once (its speed rises from rest).
+                        self.taper.set(self.plan_s.0, self.plan_s.1);
                         let (m, u) = self.last_final.unwrap_or((material, Vol::ZERO));
                         if m != material {
                             let _ = self.boundaries.push_back((u, material));
@@ -154,11 +162,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 Ok(())
             }
             Command::Section { um2 } => {
-                // Between beads only: a section step inside a bead would be a step of the
-                // head's speed at constant flow, which the plan does not ramp.
-                if self.open.is_some() {
-                    return Err(Fault::InvalidCommand(CommandError::SectionInBead));
-                }
+                // Between beads it holds from the next bead's start; inside a bead, from
+                // the next print segment's start, reached over `crate::section_taper`'s
+                // staircase (a step of the head's speed at constant flow).
                 let (min_um2, max_um2) = self.section_um2;
                 if um2 < min_um2 || um2 > max_um2 {
                     return Err(Fault::InvalidCommand(CommandError::SectionOutOfRange {
@@ -189,13 +195,35 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let _ = self.ends.push_back(seg.u_end);
             self.last_final = Some((seg.material, seg.u_end));
             self.known_to = Some(seg.u_end);
+            // A change under way ends with its bead (the next starts at its section).
+            self.taper.set(self.plan_s.0, self.plan_s.1);
+        }
+    }
+
+    /// Starts the staircase to the section asked, at the flow's top (`v_flow_max` through
+    /// the config's section) and the lower X/Y limit.
+    fn start_taper(&mut self) {
+        let m = &self.machine;
+        let q_max = m.v_flow_max * m.bead_area;
+        let a = m.motion.max_accel[0].min(m.motion.max_accel[1]);
+        self.taper.start(self.plan_s.0, self.plan_s.1, q_max, a);
+    }
+
+    /// Plan places a command may take beyond the one `room` keeps: a segment laid on a
+    /// section's staircase is a plan item a stair.
+    pub(super) fn taper_room(&self) -> usize {
+        if self.taper.active() {
+            crate::section_taper::TAPER_STAIRS
+        } else {
+            0
         }
     }
 
     /// Fixes an open segment's end: the fillet into `next` (direction, length), or the
-    /// bead's end. Returns the segment and the tangent length the next one starts with.
-    fn finalise(&self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
-        let s = self.plan_s.0;
+    /// bead's end. Returns the segment and the tangent length the next one starts with;
+    /// the lengths of it on a section's earlier stairs (`crate::section_taper`) go into
+    /// the plan first, a segment each.
+    fn finalise(&mut self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
         let f = next.and_then(|(d2, l2)| {
             // This segment's fillet may use all of it that the previous fillet left; the next
             // segment keeps half for its own far end.
@@ -208,23 +236,46 @@ impl<R: Real, const N: usize> Executor<R, N> {
             o.from[0] + o.dir[0] * o.t_start,
             o.from[1] + o.dir[1] * o.t_start,
         ];
-        let u_arc = o.u_start + Vol::from_mm3(len * s);
+        let at = |x: R| [start[0] + o.dir[0] * x, start[1] + o.dir[1] * x];
+        let (mut s, mut inv_s) = self.taper.now();
+        let (mut x, mut u) = (R::ZERO, o.u_start);
+        // At most `TAPER_STAIRS` rounds (`Taper::take`).
+        while let Some(l) = self.taper.take(len - x) {
+            let u_next = u + Vol::from_mm3(l * s);
+            let _ = self.plan.push_back(Item::Seg(Seg {
+                material: o.material,
+                start: at(x),
+                dir: o.dir,
+                len: l,
+                fillet: None,
+                u_start: u,
+                u_arc: u_next,
+                u_end: u_next,
+                last: false,
+                index: o.index,
+                inv_s,
+            }));
+            (x, u) = (x + l, u_next);
+            (s, inv_s) = self.taper.now();
+        }
+        let rest = len - x;
+        let u_arc = u + Vol::from_mm3(rest * s);
         let u_end = u_arc
             + f.map(|f| Vol::from_mm3(f.length() * s))
                 .unwrap_or(Vol::ZERO);
         (
             Seg {
                 material: o.material,
-                start,
+                start: at(x),
                 dir: o.dir,
-                len,
+                len: rest,
                 fillet: f,
-                u_start: o.u_start,
+                u_start: u,
                 u_arc,
                 u_end,
                 last: next.is_none(),
                 index: o.index,
-                inv_s: self.plan_s.1,
+                inv_s,
             },
             t_end,
         )
@@ -233,4 +284,104 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
 fn sat_i32(v: i64) -> i32 {
     v.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::command::section_limits;
+    use crate::config::Config;
+
+    fn executor() -> Executor<f64, 4> {
+        let cfg: Config = toml::from_str(include_str!("../../configs/seed-paper.toml")).unwrap();
+        let mut e = Executor::new(cfg.validate::<f64, 4>().unwrap());
+        e.begin([20_000, 20_000, 600], 0).unwrap();
+        e
+    }
+
+    fn print(dx: i32) -> Command {
+        Command::Print {
+            dx,
+            dy: 0,
+            material: 0,
+        }
+    }
+
+    /// The segments planned, as (command index, start x, length, inverse section).
+    fn segs(e: &Executor<f64, 4>) -> Vec<(u32, f64, f64, f64)> {
+        e.plan
+            .iter()
+            .filter_map(|i| match i {
+                Item::Seg(s) => Some((s.index, s.start[0], s.len, s.inv_s)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// A `Section` between two print segments of one bead is taken: the segment before it
+    /// keeps the bead's section to its end, the one after it starts the staircase to the
+    /// new one, and the bead ends on it. Plan volume is continuous through the stairs.
+    #[test]
+    fn a_section_mid_bead_holds_from_the_next_segment_over_its_stairs() {
+        let mut e = executor();
+        let s0 = e.machine.bead_area;
+        let s1 = s0 * 1.5;
+        let um2 = libm::round(s1 * 1e6) as u32;
+        for c in [
+            print(5_000),
+            Command::Section { um2 },
+            print(5_000),
+            Command::End,
+        ] {
+            e.push(c).unwrap();
+        }
+        let segs = segs(&e);
+        // Command 0 at the config's section, whole; command 2 on stairs to the new one.
+        assert_eq!(segs[0].0, 0);
+        assert_eq!(segs[0].3, 1.0 / s0);
+        assert!((segs[0].2 - 5.0).abs() < 1e-9);
+        let on_2: Vec<_> = segs.iter().filter(|s| s.0 == 2).collect();
+        assert!(on_2.len() > 1, "{segs:?}");
+        assert!((on_2.last().unwrap().3 - 1.0e6 / um2 as f64).abs() < 1e-12);
+        // Each stair between the two, in order, and the pieces end to end over 5 mm.
+        for w in on_2.windows(2) {
+            assert!(w[1].3 < w[0].3 && w[1].3 >= 1.0e6 / um2 as f64);
+            assert!((w[0].1 + w[0].2 - w[1].1).abs() < 1e-9);
+        }
+        assert!(on_2[0].3 < 1.0 / s0);
+        assert!((on_2[0].1 - 25.0).abs() < 1e-9);
+        let total: f64 = on_2.iter().map(|s| s.2).sum();
+        assert!((total - 5.0).abs() < 1e-9, "{total}");
+        let mut u = Vol::ZERO;
+        for i in e.plan.iter() {
+            if let Item::Seg(s) = i {
+                assert_eq!(s.u_start, u);
+                u = s.u_end;
+            }
+        }
+    }
+
+    /// A section outside the machine's range is refused mid-bead as between beads; one
+    /// inside it, mid-bead, is not.
+    #[test]
+    fn a_section_out_of_range_mid_bead_is_refused_by_name() {
+        let (lo, hi) = section_limits(executor().machine.bead_area);
+        for um2 in [0, lo - 1, hi + 1, u32::MAX] {
+            let mut e = executor();
+            e.push(print(1_000)).unwrap();
+            let r = e.push(Command::Section { um2 });
+            let want = Fault::InvalidCommand(CommandError::SectionOutOfRange {
+                um2,
+                min_um2: lo,
+                max_um2: hi,
+            });
+            assert_eq!(r, Err(super::super::PushError::Rejected(want)), "{um2}");
+        }
+        for um2 in [lo, hi] {
+            let mut e = executor();
+            e.push(print(1_000)).unwrap();
+            assert_eq!(e.push(Command::Section { um2 }), Ok(()));
+            assert_eq!(e.push(print(1_000)), Ok(()));
+        }
+    }
 }
