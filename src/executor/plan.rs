@@ -98,7 +98,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let dir = [(to[0] - from[0]) / length, (to[1] - from[1]) / length];
                 let (t_start, u_start) = match self.open.take() {
                     Some(prev) => {
-                        let (seg, t) = self.finalise(prev, Some((dir, length)));
+                        let (seg, t, corner_mid) = self.finalise(prev, Some((dir, length)));
                         let _ = self.plan.push_back(Item::Seg(seg));
                         // A section asked since the segment before: this one starts the
                         // staircase to it (`crate::section_taper`).
@@ -106,8 +106,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                             self.start_taper();
                         }
                         if seg.material != material {
-                            let mid = seg.u_arc + Vol((seg.u_end - seg.u_arc).0 / 2);
-                            let _ = self.boundaries.push_back((mid, material));
+                            let _ = self.boundaries.push_back((corner_mid, material));
                         }
                         self.last_final = Some((seg.material, seg.u_end));
                         self.known_to = Some(seg.u_end);
@@ -190,7 +189,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// Finalises the open segment as the last of its bead.
     fn close_bead(&mut self) {
         if let Some(prev) = self.open.take() {
-            let (seg, _) = self.finalise(prev, None);
+            let (seg, _, _) = self.finalise(prev, None);
             let _ = self.plan.push_back(Item::Seg(seg));
             let _ = self.ends.push_back(seg.u_end);
             self.last_final = Some((seg.material, seg.u_end));
@@ -220,10 +219,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// Fixes an open segment's end: the fillet into `next` (direction, length), or the
-    /// bead's end. Returns the segment and the tangent length the next one starts with;
-    /// the lengths of it on a section's earlier stairs (`crate::section_taper`) go into
-    /// the plan first, a segment each.
-    fn finalise(&mut self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R) {
+    /// bead's end. Returns the segment, the tangent length the next one starts with and
+    /// the middle of its fillet as plan volume (where a change of material goes); the
+    /// lengths of it on a section's earlier stairs (`crate::section_taper`), fillet
+    /// included, go into the plan first, a segment each.
+    fn finalise(&mut self, o: Open<R>, next: Option<(V2<R>, R)>) -> (Seg<R>, R, Vol) {
         let f = next.and_then(|(d2, l2)| {
             // This segment's fillet may use all of it that the previous fillet left; the next
             // segment keeps half for its own far end.
@@ -237,48 +237,66 @@ impl<R: Real, const N: usize> Executor<R, N> {
             o.from[1] + o.dir[1] * o.t_start,
         ];
         let at = |x: R| [start[0] + o.dir[0] * x, start[1] + o.dir[1] * x];
-        let (mut s, mut inv_s) = self.taper.now();
-        let (mut x, mut u) = (R::ZERO, o.u_start);
-        // At most `TAPER_STAIRS` rounds (`Taper::take`).
-        while let Some(l) = self.taper.take(len - x) {
-            let u_next = u + Vol::from_mm3(l * s);
-            let _ = self.plan.push_back(Item::Seg(Seg {
-                material: o.material,
-                start: at(x),
-                dir: o.dir,
-                len: l,
-                fillet: None,
-                u_start: u,
-                u_arc: u_next,
-                u_end: u_next,
-                last: false,
-                index: o.index,
-                inv_s,
-            }));
-            (x, u) = (x + l, u_next);
-            (s, inv_s) = self.taper.now();
-        }
-        let rest = len - x;
-        let u_arc = u + Vol::from_mm3(rest * s);
-        let u_end = u_arc
-            + f.map(|f| Vol::from_mm3(f.length() * s))
-                .unwrap_or(Vol::ZERO);
-        (
+        let fl = f.map(|f| f.length()).unwrap_or(R::ZERO);
+        let total = len + fl;
+        // Bead from `a` to `b` along the straight part and on round its fillet, laid at
+        // section `s` (inverse `inv_s`) from plan volume `u`.
+        let piece = |a: R, b: R, u: Vol, (s, inv_s): (R, R)| {
+            let (sa, sb) = (a.min(len), b.min(len));
+            let (fa, fb) = ((a - len).max(R::ZERO), (b - len).max(R::ZERO));
+            let (arc, arc_len) = match f {
+                // The whole fillet as it is (bitwise: no change without a staircase).
+                Some(f) if fa == R::ZERO && b >= total => (Some(f), fl),
+                Some(f) if fb > fa => (Some(sub_fillet(f, fa, fb)), fb - fa),
+                _ => (None, R::ZERO),
+            };
+            let u_arc = u + Vol::from_mm3((sb - sa) * s);
+            let u_end = u_arc + arc.map(|_| Vol::from_mm3(arc_len * s)).unwrap_or(Vol::ZERO);
             Seg {
                 material: o.material,
-                start: at(x),
+                start: at(sa),
                 dir: o.dir,
-                len: rest,
-                fillet: f,
+                len: sb - sa,
+                fillet: arc,
                 u_start: u,
                 u_arc,
                 u_end,
-                last: next.is_none(),
+                last: false,
                 index: o.index,
                 inv_s,
-            },
-            t_end,
-        )
+            }
+        };
+        let mut stair = self.taper.now();
+        let (mut x, mut u) = (R::ZERO, o.u_start);
+        // Where the fillet starts, as plan volume.
+        let mut u_corner = None;
+        // At most `TAPER_STAIRS` rounds (`Taper::take`): the staircase goes on round the
+        // fillet, which is cut at each stair as the straight part is.
+        while let Some(l) = self.taper.take(total - x) {
+            let p = piece(x, x + l, u, stair);
+            if x <= len && x + l >= len {
+                u_corner = Some(p.u_arc);
+            }
+            let _ = self.plan.push_back(Item::Seg(p));
+            (x, u) = (x + l, p.u_end);
+            stair = self.taper.now();
+        }
+        let mut seg = piece(x, total, u, stair);
+        seg.last = next.is_none();
+        let u_corner = u_corner.unwrap_or(seg.u_arc);
+        let corner_mid = u_corner + Vol((seg.u_end - u_corner).0 / 2);
+        (seg, t_end, corner_mid)
+    }
+}
+
+/// The part of fillet `f` from arc length `a` to `b`.
+fn sub_fillet<R: Real>(f: Fillet<R>, a: R, b: R) -> Fillet<R> {
+    let (da, db) = (a / f.radius, b / f.radius);
+    let sign = if f.sweep >= R::ZERO { R::ONE } else { -R::ONE };
+    Fillet {
+        start_angle: f.start_angle + sign * da,
+        sweep: sign * (db - da),
+        ..f
     }
 }
 
