@@ -47,10 +47,12 @@ pub enum Command {
     },
     /// End of job: finish the last bead, close the valves, stop.
     End,
-    /// The bead section S for the beads that follow, square micrometres (job format 2):
-    /// the head runs at `v = Q / S` along them. Only between beads (a run of `Print`s
-    /// is one bead of one section), within [`section_limits`] of the machine's section.
-    /// Appended last so that the postcard indices of the version 1 commands stay.
+    /// The bead section S for the print segments that follow, square micrometres (job
+    /// format 2): the head runs at `v = Q / S` along them. Between beads it holds from
+    /// the next bead's start; between two print segments of one bead, from the next
+    /// segment's start, where the head's speed changes at constant flow over a short
+    /// staircase (`crate::section_taper`). Within [`section_limits`] of the machine's
+    /// section. Appended last so that the postcard indices of the version 1 commands stay.
     Section {
         /// Bead cross-section, um^2 (1 mm^2 = 1 000 000).
         um2: u32,
@@ -89,7 +91,9 @@ pub enum CommandError {
         /// Largest accepted, um^2.
         max_um2: u32,
     },
-    /// A `Section` between two print segments of one bead: sections change between beads.
+    /// A `Section` between two print segments of one bead, which boards before issue 26's
+    /// per-segment sections refused. No longer raised: kept so that a host still reads
+    /// such a board's fault (and the variant indices stay).
     SectionInBead,
 }
 
@@ -148,7 +152,8 @@ impl core::fmt::Display for CommandError {
             ),
             CommandError::SectionInBead => write!(
                 f,
-                "bead section changed between two print segments of one bead (corrupt job?)"
+                "bead section changed between two print segments of one bead, which this \
+                 board's firmware does not accept (update it)"
             ),
         }
     }

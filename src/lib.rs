@@ -20,6 +20,7 @@ mod poly;
 pub mod ramp;
 pub mod real;
 pub mod rheology;
+pub mod section_taper;
 pub mod state;
 pub mod step_gen;
 pub mod step_ramps;

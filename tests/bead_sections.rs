@@ -112,9 +112,19 @@ fn zero_absurd_or_mid_bead_sections_are_refused_by_name() {
     for um2 in [lo, hi] {
         assert_eq!(refused(&[travel, Command::Section { um2 }, print]), None);
     }
+    // Mid-bead (issue 26's per-segment sections): taken inside the range, refused by
+    // name outside it.
     assert_eq!(
-        refused(&[travel, print, Command::Section { um2: lo }, print]),
-        Some(Fault::InvalidCommand(CommandError::SectionInBead))
+        refused(&[travel, print, Command::Section { um2: hi }, print]),
+        None
+    );
+    assert_eq!(
+        refused(&[travel, print, Command::Section { um2: hi + 1 }, print]),
+        Some(Fault::InvalidCommand(CommandError::SectionOutOfRange {
+            um2: hi + 1,
+            min_um2: lo,
+            max_um2: hi
+        }))
     );
 }
 

@@ -24,7 +24,11 @@ pub fn design_beads(commands: &[Command], start_um: [i32; 3]) -> Vec<DesignBead>
     // bead as a travel or a layer change does.
     let mut next_index = 0;
     for m in walk(commands, start_um) {
-        let contiguous = m.index == next_index;
+        // A `Section` between two prints is no gap: it changes the bead's section there.
+        let contiguous = m.index == next_index
+            || commands.get(next_index..m.index).is_some_and(|between| {
+                between.iter().all(|c| matches!(c, Command::Section { .. }))
+            });
         next_index = m.index + 1;
         if !contiguous {
             beads.extend(cur.take());
@@ -87,7 +91,9 @@ pub struct Metrics {
     /// Beads whose landed material sequence differs from the design's (description).
     pub mismatches: Vec<String>,
     /// Smallest and largest cross-section / S over `SECTION_WINDOW_MM` windows of bead,
-    /// S each bead's own (its `Command::Section`, else the config's).
+    /// S each move's own (its `Command::Section`, else the config's; a window over two
+    /// moves against their length-weighted mean), away from the section's changes inside
+    /// a bead (see `section_steps`).
     pub section_range: (f64, f64),
     /// Smallest and largest of the beads' own sections, mm^2 (NaN with no bead).
     pub bead_sections: (f64, f64),
@@ -112,6 +118,15 @@ pub struct Metrics {
     pub section_samples: Vec<f64>,
     /// Every cross-section / S over `SECTION_LONG_MM`, as `section_samples`.
     pub section_long_samples: Vec<f64>,
+    /// Changes of section between two print segments of one bead met (job format 2's
+    /// mid-bead `Command::Section`, issue 26): the head's speed changes there at constant
+    /// flow over its own ramp, and the long windows that come within `Meter::step_reach`
+    /// of one are left out of the ranges above and kept here instead.
+    pub section_steps: u64,
+    /// Every long window within reach of a change of section, and beyond it in beads that
+    /// change section: (distance from the window to the nearest change, mm, cross-section /
+    /// S), for how far the change's ramp reaches.
+    pub section_step_samples: Vec<(f64, f64)>,
     /// Volume landed while the head was not on a bead, mm^3.
     pub off_path_volume: f64,
     /// Landed material runs shorter than the sliver length, merged away.
@@ -181,7 +196,7 @@ pub const STRAIGHT_DEG: f64 = 10.0;
 
 /// Whether the long window made of `recent`'s short windows (volume, length, end) runs
 /// straight: every short window's chord within `STRAIGHT_DEG` of the whole one's.
-fn straight(recent: &std::collections::VecDeque<(f64, f64, [f64; 2])>) -> bool {
+fn straight(recent: &std::collections::VecDeque<(f64, f64, [f64; 2], f64)>) -> bool {
     let (Some(first), Some(last)) = (recent.front(), recent.back()) else {
         return true;
     };
@@ -221,8 +236,14 @@ struct BeadTrace {
     samples: Vec<[f64; 3]>,
     landed: Vec<(f64, u8)>,
     s: f64,
-    /// Landed volume and path length of the cross-section window in progress.
-    window: (f64, f64),
+    /// Landed volume, path length and path length x each move's own section (mm^3) of
+    /// the cross-section window in progress.
+    window: (f64, f64, f64),
+    /// The executed path's length less the design's at the start of the command the head
+    /// is on (fillets cut corners), mm: where the design's changes of section lie on it.
+    drift: f64,
+    /// The command the head is on.
+    command: Option<u32>,
     /// Bead-equivalent length of what landed while settling at the end, mm.
     extra: f64,
 }
@@ -232,15 +253,84 @@ struct BeadTrace {
 pub struct Meter {
     beads: Vec<DesignBead>,
     of_command: Vec<Option<usize>>,
-    /// Each design bead's own section (its `Command::Section`, else the config's), mm^2:
-    /// the section is measured against it.
+    /// Each design bead's own section at its start (its `Command::Section`, else the
+    /// config's), mm^2.
     bead_s: Vec<f64>,
+    /// The section in force at each command, mm^2: each move is measured against its own.
+    cmd_s: Vec<f64>,
+    /// Each command's design path length from its bead's start, mm.
+    cmd_at: Vec<f64>,
+    /// Each design bead's changes of section: design path length from its start, and
+    /// the sections before and after, mm^2.
+    bead_steps: Vec<Steps>,
+    /// How far a change of section's ramp reaches either side of it (`step_reach`).
+    reach: StepReach,
     current: Option<(usize, BeadTrace)>,
     last_pos: [f64; 2],
-    /// The current bead's latest short windows (volume, length), at least
-    /// `SECTION_LONG_MM` of them once the bead is that long.
-    recent: std::collections::VecDeque<(f64, f64, [f64; 2])>,
+    /// The current bead's latest short windows (volume, length, end, length x section),
+    /// at least `SECTION_LONG_MM` of them once the bead is that long.
+    recent: std::collections::VecDeque<(f64, f64, [f64; 2], f64)>,
     metrics: Metrics,
+}
+
+/// How far the head's change of speed at a change of section mid-bead reaches along the
+/// bead: the executor's staircase (`dollop::section_taper`) after it, and the speed
+/// ramps' window (if the machine has one) either side.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepReach {
+    /// The flow's top, mm^3/s (`v_flow_max` through the config's section).
+    pub q_max: f64,
+    /// The staircase's mean acceleration at that flow, mm/s^2.
+    pub accel: f64,
+    /// Half the speed ramps' window at the flow's top speed, mm (0 without ramps).
+    pub ring_mm: f64,
+}
+
+impl StepReach {
+    /// The reach after a change from section `a` to `b` (mm^2), mm: the staircase's whole
+    /// volume at the narrower section, and the ramps' half window.
+    pub fn behind(&self, a: f64, b: f64) -> f64 {
+        let taper = if self.accel > 0.0 {
+            self.q_max * self.q_max * (1.0 / b - 1.0 / a).abs() / self.accel / a.min(b)
+        } else {
+            0.0
+        };
+        taper + self.ring_mm
+    }
+}
+
+/// A bead's changes of section between two of its print segments: (design path length
+/// from its start, mm, section before, after, mm^2).
+type Steps = Vec<(f64, f64, f64)>;
+
+/// Each command's design path length from its bead's start (mm), and each bead's changes
+/// of section (`Steps`).
+fn section_steps(
+    commands: &[Command],
+    beads: &[DesignBead],
+    sections: &[f64],
+) -> (Vec<f64>, Vec<Steps>) {
+    let mut at = vec![0.0; commands.len()];
+    let steps = beads
+        .iter()
+        .map(|b| {
+            let mut steps = Vec::new();
+            let (mut len, mut last) = (0.0, None::<f64>);
+            for i in b.commands.0 as usize..=b.commands.1 as usize {
+                at[i] = len;
+                if let Command::Print { dx, dy, .. } = commands[i] {
+                    let s = sections[i];
+                    if last.is_some_and(|l| l != s) {
+                        steps.push((len, last.unwrap_or(s), s));
+                    }
+                    last = Some(s);
+                    len += (dx as f64).hypot(dy as f64) * 1e-3;
+                }
+            }
+            steps
+        })
+        .collect();
+    (at, steps)
 }
 
 /// One cycle's input to the meter.
@@ -303,10 +393,15 @@ impl Meter {
                     .unwrap_or(bead_area)
             })
             .collect();
+        let (cmd_at, bead_steps) = section_steps(commands, &beads, &sections);
         Meter {
             beads,
             of_command,
             bead_s,
+            cmd_s: sections,
+            cmd_at,
+            bead_steps,
+            reach: StepReach::default(),
             current: None,
             last_pos: [f64::NAN; 2],
             recent: Default::default(),
@@ -333,11 +428,21 @@ impl Meter {
                 self.last_pos = c.pos;
             }
         }
+        // The section this cycle's move asks, and where its command starts on the design.
+        let here = c.bead_command.map(|i| i as usize);
+        let s_here = here.and_then(|i| self.cmd_s.get(i)).copied();
+        let at_here = here.and_then(|i| self.cmd_at.get(i)).copied();
         let Some((bi, trace)) = self.current.as_mut() else {
             self.metrics.off_path_volume += c.landed_volume;
             self.last_pos = c.pos;
             return;
         };
+        if trace.command != c.bead_command {
+            trace.command = c.bead_command;
+            if let Some(a) = at_here {
+                trace.drift = trace.s - a;
+            }
+        }
         let ds =
             ((c.pos[0] - self.last_pos[0]).powi(2) + (c.pos[1] - self.last_pos[1]).powi(2)).sqrt();
         let s0 = trace.s + trace.extra;
@@ -366,6 +471,7 @@ impl Meter {
             if c.printing {
                 trace.window.0 += c.landed_volume;
                 trace.window.1 += ds;
+                trace.window.2 += ds * s_here.unwrap_or(self.bead_s[*bi]);
             }
         }
         if let Some((_, trace)) = self.current.as_mut() {
@@ -377,9 +483,29 @@ impl Meter {
         self.last_pos = c.pos;
     }
 
-    fn section(&mut self, (vol, ds): (f64, f64), at: [f64; 2]) {
-        let s = self.current.as_ref().map_or(f64::NAN, |x| self.bead_s[x.0]);
-        let ratio = vol / (ds * s);
+    fn section(&mut self, (vol, ds, sds): (f64, f64, f64), at: [f64; 2]) {
+        let ratio = vol / sds;
+        // How near the short window and the long one ending here come to a change of
+        // section (infinite in a bead without one).
+        let ((_, near_short), (raw_long, near_long)) =
+            (self.step_near(ds), self.step_near(SECTION_LONG_MM));
+        self.recent.push_back((vol, ds, at, sds));
+        while self.recent.len() > 1
+            && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
+        {
+            self.recent.pop_front();
+        }
+        let (v, l, sl) = self
+            .recent
+            .iter()
+            .fold((0.0, 0.0, 0.0), |a, w| (a.0 + w.0, a.1 + w.1, a.2 + w.3));
+        if raw_long.is_finite() && l >= SECTION_LONG_MM {
+            self.metrics.section_step_samples.push((raw_long, v / sl));
+        }
+        if near_short <= 0.0 || near_long <= 0.0 {
+            // Within a change's reach: kept in `section_step_samples` only.
+            return;
+        }
         let (lo, hi) = self.metrics.section_range;
         if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
             self.metrics.section_worst_at = at;
@@ -387,18 +513,8 @@ impl Meter {
         self.metrics.section_range = (lo.min(ratio), hi.max(ratio));
         self.metrics.section_cycles += 1;
         self.metrics.section_samples.push(ratio);
-        self.recent.push_back((vol, ds, at));
-        while self.recent.len() > 1
-            && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
-        {
-            self.recent.pop_front();
-        }
-        let (v, l) = self
-            .recent
-            .iter()
-            .fold((0.0, 0.0), |a, w| (a.0 + w.0, a.1 + w.1));
         if l >= SECTION_LONG_MM {
-            let ratio = v / (l * s);
+            let ratio = v / sl;
             let (lo, hi) = self.metrics.section_long_range;
             if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
                 self.metrics.section_long_worst_at = at;
@@ -432,11 +548,41 @@ impl Meter {
         if !self.metrics.section_straight_range.0.is_finite() {
             self.metrics.section_straight_range = (1.0, 1.0);
         }
+        self.metrics.section_steps = self.bead_steps.iter().map(|s| s.len() as u64).sum();
         self.metrics.bead_sections = self
             .bead_s
             .iter()
             .fold((f64::NAN, f64::NAN), |(lo, hi), &s| (lo.min(s), hi.max(s)));
         self.metrics
+    }
+
+    /// The window of `len` mm ending where the head is against the current bead's changes
+    /// of section: its distance from the nearest, mm, and how far it is outside the
+    /// reach of every one (at most 0: within one's). Infinite in a bead without one.
+    fn step_near(&self, len: f64) -> (f64, f64) {
+        let Some((bi, t)) = self.current.as_ref() else {
+            return (f64::INFINITY, f64::INFINITY);
+        };
+        let (start, end) = (t.s - len, t.s);
+        let (mut raw, mut clear) = (f64::INFINITY, f64::INFINITY);
+        for &(p, a, b) in &self.bead_steps[*bi] {
+            let p = p + t.drift;
+            // The change's staircase runs after it; the ramp's window either side.
+            let (gap, reach) = if p > end {
+                (p - end, self.reach.ring_mm)
+            } else {
+                ((start - p).max(0.0), self.reach.behind(a, b))
+            };
+            raw = raw.min(gap);
+            clear = clear.min(gap - reach);
+        }
+        (raw, clear)
+    }
+
+    /// Sets how far a change of section's ramp reaches (the machine's; none by default:
+    /// only the windows over a change are left out).
+    pub fn set_step_reach(&mut self, reach: StepReach) {
+        self.reach = reach;
     }
 
     fn finish_bead(&mut self) {
@@ -622,17 +768,18 @@ mod tests {
     #[test]
     fn straight_windows_are_told_from_turns() {
         let line: std::collections::VecDeque<_> = (0..11)
-            .map(|i| (0.0, 0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64]))
+            .map(|i| (0.0, 0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64], 0.0))
             .collect();
         assert!(straight(&line));
         let arc: std::collections::VecDeque<_> = (0..11)
             .map(|i| {
                 let a = i as f64 * 0.02 / 0.4;
-                (0.0, 0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())])
+                (0.0, 0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())], 0.0)
             })
             .collect();
         assert!(!straight(&arc));
-        let still: std::collections::VecDeque<_> = (0..3).map(|_| (0.0, 0.0, [1.0, 1.0])).collect();
+        let still: std::collections::VecDeque<_> =
+            (0..3).map(|_| (0.0, 0.0, [1.0, 1.0], 0.0)).collect();
         assert!(!straight(&still));
     }
     use super::*;

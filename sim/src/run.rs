@@ -254,6 +254,16 @@ impl<'a, R: Real> Runner<'a, R> {
         ];
         let bead_area = machine.bead_area.to_f64();
         let pauser = Pauser::new(pauses, bead_area, machine.q_stop.to_f64() / bead_area);
+        let mut meter = Meter::new(&job.commands, job.start_um, bead_area);
+        let v_max = machine.v_flow_max.to_f64();
+        let a_xy = machine.motion.max_accel[0]
+            .min(machine.motion.max_accel[1])
+            .to_f64();
+        meter.set_step_reach(crate::metrics::StepReach {
+            q_max: v_max * bead_area,
+            accel: a_xy * dollop::section_taper::TAPER_SHARE,
+            ring_mm: (machine.ramp_cycles / 2) as f64 * dt * v_max,
+        });
         let mut exec: Executor<R> = Executor::new(machine);
         exec.begin(job.start_um, job.initial_material)
             .map_err(SimError::Begin)?;
@@ -270,7 +280,7 @@ impl<'a, R: Real> Runner<'a, R> {
             exec,
             out: RecordingOutputs::default(),
             plant,
-            meter: Meter::new(&job.commands, job.start_um, bead_area),
+            meter,
             pauser,
             park_view: ParkView::default(),
             refill: Refill::default(),

@@ -251,8 +251,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }) => {
                 self.last_index = index;
                 self.head = u_start;
-                // The bead's own section from here to its end (sections change between
-                // beads only): the head's `v = Q / S`, and what turns volume into length.
+                // The segment's own section (`follow_path` takes each next one's): the
+                // head's `v = Q / S`, and what turns volume into length.
                 self.inv_s = inv_s;
                 self.phase = Phase::Print { stopping: false };
                 // Open the valve of the material the cursor stands on.
@@ -318,7 +318,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// tick's print path (a pause's tail calls it too, out of line).
     #[inline(always)]
     pub(super) fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
-        let inv_s = self.inv_s;
         let q_stop = self.machine.q_stop;
         let shut = self.model.commanded() == 0;
         for _ in 0..PLAN_CAPACITY {
@@ -338,12 +337,15 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     return Ok(true);
                 }
                 self.plan.pop_front();
-                if self.plan.is_empty() {
-                    return Err(Fault::Underrun);
+                // The next segment's own section (a bead may change it mid-way): for the
+                // valves' sizing, the report and a pause.
+                match self.plan.front() {
+                    Some(Item::Seg(n)) => self.inv_s = n.inv_s,
+                    _ => return Err(Fault::Underrun),
                 }
                 continue;
             }
-            let off = (self.head - seg.u_start).mm3::<R>() * inv_s;
+            let off = (self.head - seg.u_start).mm3::<R>() * seg.inv_s;
             if off <= seg.len {
                 self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
                 self.head_pos[1] = seg.start[1] + seg.dir[1] * off;

@@ -142,10 +142,12 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// Largest shortfall of a bead's end (paste ran out before it), as volume.
     short: Vol,
     dt: R,
-    /// 1 / the section of the bead the head is on (set as each bead starts).
+    /// 1 / the section of the segment the head is on (set as each segment starts).
     inv_s: R,
     /// Section the beads planned next take (`Command::Section`), mm^2, and its inverse.
     plan_s: (R, R),
+    /// The section the plan lays now, and a change mid-bead under way.
+    taper: crate::section_taper::Taper<R>,
     /// Sections a `Command::Section` may ask, um^2 (`command::section_limits`).
     section_um2: (u32, u32),
     lost: Vol,
@@ -208,6 +210,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             dt: R::ZERO,
             inv_s: R::ZERO,
             plan_s: (R::ZERO, R::ZERO),
+            taper: crate::section_taper::Taper::new(),
             section_um2: (0, 0),
             lost: Vol::ZERO,
             last_now: None,
@@ -303,6 +306,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let s = self.machine.bead_area;
         self.inv_s = R::ONE / s;
         self.plan_s = (s, R::ONE / s);
+        self.taper.set(s, R::ONE / s);
     }
 
     /// The machine this executor runs.
@@ -391,8 +395,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
 
     /// Free places in the plan queue. A feeder keeps it topped up while a job runs.
     pub fn room(&self) -> usize {
-        // One place is kept for the segment that `open` will become.
-        (PLAN_CAPACITY - self.plan.len()).saturating_sub(1)
+        // One place is kept for the segment that `open` will become, and one a stair
+        // while a section's change is under way (its segments split at each).
+        (PLAN_CAPACITY - self.plan.len()).saturating_sub(1 + self.taper_room())
     }
 
     /// Queues the next job command. Invalid commands are refused and latch a fault that

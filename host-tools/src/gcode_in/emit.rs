@@ -165,7 +165,13 @@ impl Emitter {
         self.zs.insert(f[2]);
         let below = self.zs.range(..f[2]).next_back().copied().unwrap_or(0);
         let h = (f[2] - below) as f64 * 1e-3;
-        if dollop::command::extend_last_print(&mut self.cmds, dx, dy, material) {
+        // A collinear move of another width stays a command of its own, so that it may
+        // be laid at its own section (`sections::RUN_TOL`).
+        let same_width = self.asked.last().is_some_and(|a| {
+            a.len <= 0.0
+                || (section - a.s_len / a.len).abs() <= 0.5 * super::sections::RUN_TOL * section
+        });
+        if same_width && dollop::command::extend_last_print(&mut self.cmds, dx, dy, material) {
             if let Some(a) = self.asked.last_mut() {
                 a.add(len, section, h);
             }

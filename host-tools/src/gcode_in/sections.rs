@@ -1,9 +1,12 @@
 //! Bead sections from the G-code's E: each extrusion move asks `S = E x filament area /
-//! length` (E as volume after `M200 D<d>` or with `--volumetric`), and each bead of the job
-//! (a run of print commands) gets one section, the length-weighted mean of its moves',
-//! written as `Command::Section` before the bead where it differs from the section in
-//! force by more than [`SECTION_STEP`]. Sections change between beads only (the executor
-//! refuses one inside a bead); how far a bead's moves ask from its mean is counted for the
+//! length` (E as volume after `M200 D<d>` or with `--volumetric`). Each bead of the job (a
+//! run of print commands) is cut into runs of moves whose sections lie within
+//! [`RUN_TOL`] of each other (a bead of one width is one run), each laid at its moves'
+//! length-weighted mean, written as `Command::Section` before the run where it differs
+//! from the section in force by more than [`SECTION_STEP`]: between beads, or inside one
+//! (job format 2's per-segment sections; the executor changes the head's speed there at
+//! constant flow over a short staircase). How far the moves ask from the section they are
+//! laid at (and from their bead's mean, what one section a bead gave) is counted for the
 //! summary. Sections under the config's (whose speeds the config was checked at) or over
 //! `MAX_SECTION_RATIO` times it are laid at that limit, and counted. It stops at the
 //! commands: reading E is the modal machine's.
@@ -16,6 +19,15 @@ use std::fmt;
 /// the section is held to, and above E's rounding in slicer output (5 decimals of
 /// filament, 0.1 % of a 0.05 mm move's volume).
 pub const SECTION_STEP: f64 = 0.005;
+
+/// Most a run's moves' sections may span, relative (largest over smallest, less one):
+/// every move of a run is then laid within 1 % of its own section (the run's mean lies
+/// between them), half the 2 % the section is held to, the other half left to laying it
+/// (the plant measured within 0.1 % on a straight bead away from changes). A wider
+/// tolerance would leave Arachne's tapers fewer, longer stairs at up to its own distance;
+/// a narrower one would cut beads at E's rounding (0.1 %) and XY's (under 0.7 % over
+/// [`SPREAD_MM`]).
+pub const RUN_TOL: f64 = 0.01;
 
 /// Shortest move whose section counts towards a bead's spread, mm: slicers round X and Y
 /// to 1 um, which makes a 20 um move's section up to 5 % off what was meant (measured on
@@ -102,9 +114,15 @@ pub struct SectionStats {
     pub mixed_beads: u64,
     /// Their length, mm.
     pub mixed_mm: f64,
-    /// Largest relative distance of a move's section from its bead's mean (moves of at
-    /// least [`SPREAD_MM`]).
+    /// `Section` commands written inside beads (between two of a bead's print commands).
+    pub in_bead: u64,
+    /// Largest relative distance of a move's section from the section it is laid at, its
+    /// run's (moves of at least [`SPREAD_MM`]).
     pub worst_dev: f64,
+    /// Largest relative distance of a move's section from its bead's length-weighted mean:
+    /// what laying each bead at one section would have left (moves of at least
+    /// [`SPREAD_MM`]).
+    pub worst_bead_dev: f64,
     /// Bead length asked under the config's section, laid at it, mm.
     pub below_mm: f64,
     /// Bead length asked over `MAX_SECTION_RATIO` times the config's, laid at that, mm.
@@ -135,10 +153,13 @@ impl fmt::Display for SectionStats {
         )?;
         writeln!(
             f,
-            "  {} bead(s) ({:.0} mm) mix sections, laid at their length-weighted mean: a move (of 0.2 mm or more) at most {:.1} % from its bead's",
+            "  {} bead(s) ({:.0} mm) mix sections, laid in runs within {} % with {} Section command(s) inside beads: a move (of 0.2 mm or more) at most {:.1} % from the section it is laid at ({:.1} % from its bead's mean)",
             self.mixed_beads,
             self.mixed_mm,
-            self.worst_dev * 100.0
+            RUN_TOL * 100.0,
+            self.in_bead,
+            self.worst_dev * 100.0,
+            self.worst_bead_dev * 100.0
         )?;
         if self.below_mm > 0.0 || self.above_mm > 0.0 {
             writeln!(
@@ -184,7 +205,9 @@ pub fn place(
         commands: 0,
         mixed_beads: 0,
         mixed_mm: 0.0,
+        in_bead: 0,
         worst_dev: 0.0,
+        worst_bead_dev: 0.0,
         below_mm: 0.0,
         above_mm: 0.0,
         total_mm: 0.0,
@@ -207,39 +230,138 @@ pub fn place(
         }
         if bead.len > 0.0 {
             let mean = bead.s_len / bead.len;
-            let h = bead.h_len / bead.len;
             st.total_mm += bead.len;
-            st.asked_mm2 = (st.asked_mm2.0.min(mean), st.asked_mm2.1.max(mean));
-            let (r, q) = widths(mean, h);
-            let w = &mut st.widths_mm;
-            w.0 = (w.0 .0.min(r), w.0 .1.max(r));
-            w.1 = (w.1 .0.min(q), w.1 .1.max(q));
-            let spread = bead.max > 0.0;
-            let dev = ((bead.max - mean) / mean).max((mean - bead.min) / mean);
-            if spread {
-                st.worst_dev = st.worst_dev.max(dev);
-            }
-            if spread && bead.max - bead.min > SECTION_STEP * mean {
-                st.mixed_beads += 1;
-                st.mixed_mm += bead.len;
-            }
-            let um2 = (mean * 1e6).round().clamp(0.0, u32::MAX as f64) as u32;
-            if um2 < lo_um2 {
-                st.below_mm += bead.len;
-            } else if um2 > hi_um2 {
-                st.above_mm += bead.len;
-            }
-            let um2 = um2.clamp(lo_um2, hi_um2);
-            if (um2 as f64 - now_um2 as f64).abs() > SECTION_STEP * now_um2 as f64 {
-                out.push(Command::Section { um2 });
-                st.commands += 1;
-                now_um2 = um2;
+            if bead.max > 0.0 {
+                let dev = ((bead.max - mean) / mean).max((mean - bead.min) / mean);
+                st.worst_bead_dev = st.worst_bead_dev.max(dev);
+                if bead.max - bead.min > SECTION_STEP * mean {
+                    st.mixed_beads += 1;
+                    st.mixed_mm += bead.len;
+                }
             }
         }
-        out.extend_from_slice(&cmds[i..end]);
+        let cut = match asked.get(i..end) {
+            Some(a) => runs(a),
+            None => vec![(0, end - i)],
+        };
+        for (k, (from, to)) in cut.into_iter().enumerate() {
+            let mut run = Asked::default();
+            for a in asked.get(i + from..i + to).unwrap_or(&[]) {
+                run.merge(a);
+            }
+            if run.len > 0.0 {
+                if let Some(um2) = lay_run(&run, (lo_um2, hi_um2), &mut st) {
+                    if (um2 as f64 - now_um2 as f64).abs() > SECTION_STEP * now_um2 as f64 {
+                        out.push(Command::Section { um2 });
+                        st.commands += 1;
+                        st.in_bead += (k > 0) as u64;
+                        now_um2 = um2;
+                    }
+                }
+            }
+            out.extend_from_slice(&cmds[i + from..i + to]);
+        }
         i = end;
     }
     (out, st)
+}
+
+/// Counts run `run` into `st` and returns the section it is laid at (um^2, within
+/// `limits`), or None if it asks none.
+fn lay_run(run: &Asked, limits: (u32, u32), st: &mut SectionStats) -> Option<u32> {
+    if run.len <= 0.0 {
+        return None;
+    }
+    let mean = run.s_len / run.len;
+    let h = run.h_len / run.len;
+    st.asked_mm2 = (st.asked_mm2.0.min(mean), st.asked_mm2.1.max(mean));
+    let (r, q) = widths(mean, h);
+    let w = &mut st.widths_mm;
+    w.0 = (w.0 .0.min(r), w.0 .1.max(r));
+    w.1 = (w.1 .0.min(q), w.1 .1.max(q));
+    if run.max > 0.0 {
+        let dev = ((run.max - mean) / mean).max((mean - run.min) / mean);
+        st.worst_dev = st.worst_dev.max(dev);
+    }
+    let um2 = (mean * 1e6).round().clamp(0.0, u32::MAX as f64) as u32;
+    if um2 < limits.0 {
+        st.below_mm += run.len;
+    } else if um2 > limits.1 {
+        st.above_mm += run.len;
+    }
+    Some(um2.clamp(limits.0, limits.1))
+}
+
+/// Cuts one bead's print commands (`asked`: what each asked) into runs, as (first, end)
+/// index ranges covering them in order: a run goes on while its moves' sections span at
+/// most [`RUN_TOL`]. A command of at least [`SPREAD_MM`] is judged alone (its long moves'
+/// sections and their mean), shorter ones in groups of at least that (a group's section,
+/// its length-weighted mean, has XY's rounding within 0.7 %; a short move's alone may be
+/// 5 % off), and those under that together (before a long command, at the bead's end)
+/// as a group as well.
+fn runs(asked: &[Asked]) -> Vec<(usize, usize)> {
+    let mut cut = Cutter::default();
+    // Short commands gathered into a group: its first, and what they asked.
+    let mut group = (0usize, Asked::default());
+    for (k, a) in asked.iter().enumerate() {
+        if a.len >= SPREAD_MM {
+            // A long command is a group of its own, after the short ones before it (under
+            // `SPREAD_MM` together: judged as a group too, so that they cannot pull a
+            // run's mean off its long moves; their own rounding may cut a short run).
+            let (first, g) = std::mem::take(&mut group);
+            cut.group(first, &g);
+            cut.group(k, a);
+            continue;
+        }
+        if group.1.len == 0.0 {
+            group.0 = k;
+        }
+        group.1.merge(a);
+        if group.1.len >= SPREAD_MM {
+            let (first, g) = std::mem::take(&mut group);
+            cut.group(first, &g);
+        }
+    }
+    let (first, g) = std::mem::take(&mut group);
+    cut.group(first, &g);
+    cut.out.push((cut.run.map_or(0, |r| r.0), asked.len()));
+    cut.out
+}
+
+/// `runs`' state: the runs closed, and the open one (first command, its groups' smallest
+/// and largest section: each group's mean and its long moves').
+#[derive(Default)]
+struct Cutter {
+    out: Vec<(usize, usize)>,
+    run: Option<(usize, f64, f64)>,
+}
+
+impl Cutter {
+    /// A group of at least `SPREAD_MM` starting at command `first`: it joins the open run
+    /// if the run's sections still span at most `RUN_TOL` with it, else starts one.
+    fn group(&mut self, first: usize, g: &Asked) {
+        if g.len <= 0.0 {
+            return;
+        }
+        let s = g.s_len / g.len;
+        let (glo, ghi) = if g.max > 0.0 {
+            (g.min.min(s), g.max.max(s))
+        } else {
+            (s, s)
+        };
+        self.run = match self.run {
+            None => Some((0, glo, ghi)),
+            Some((start, lo, hi)) => {
+                let (nlo, nhi) = (lo.min(glo), hi.max(ghi));
+                if nhi <= nlo * (1.0 + RUN_TOL) {
+                    Some((start, nlo, nhi))
+                } else {
+                    self.out.push((start, first));
+                    Some((first, glo, ghi))
+                }
+            }
+        };
+    }
 }
 
 #[cfg(test)]
@@ -263,7 +385,7 @@ mod tests {
     }
 
     #[test]
-    fn a_section_goes_before_each_bead_that_changes_it_and_never_inside_one() {
+    fn a_section_goes_before_each_bead_and_each_run_of_another_width_in_one() {
         // Bead 1 at the config's 0.40, bead 2 at 0.46 (a 0.9 mm perimeter), bead 3 mixing
         // 0.40 and 0.46 over equal lengths, bead 4 under the config's.
         let cmds = vec![
@@ -301,17 +423,24 @@ mod tests {
                 _ => None,
             })
             .collect();
-        assert_eq!(secs, [(3, 462_700), (7, 430_000), (11, 400_000)]);
-        // Each one follows a travel.
-        for (i, _) in &secs {
+        // Bead 3 in two runs: its second at 0.46, between its two print commands.
+        assert_eq!(
+            secs,
+            [(3, 462_700), (7, 400_000), (9, 460_000), (12, 400_000)]
+        );
+        assert!(
+            matches!(out[8], Command::Print { .. }) && matches!(out[10], Command::Print { .. })
+        );
+        for i in [3, 7, 12] {
             assert!(matches!(out[i - 1], Command::Travel { .. }));
         }
-        assert_eq!(st.commands, 3);
-        assert_eq!(st.mixed_beads, 1);
+        assert_eq!((st.commands, st.in_bead, st.mixed_beads), (4, 1, 1));
+        // Every move at its own section; one section a bead would have left 7 %.
+        assert_eq!(st.worst_dev, 0.0);
         assert!(
-            (st.worst_dev - 0.03 / 0.43).abs() < 1e-9,
+            (st.worst_bead_dev - 0.03 / 0.43).abs() < 1e-9,
             "{}",
-            st.worst_dev
+            st.worst_bead_dev
         );
         assert_eq!(st.below_mm, 1.0);
         assert_eq!(st.asked_mm2, (0.30, 0.4627));
@@ -323,5 +452,37 @@ mod tests {
             st.to_string().contains("set bead_area_mm2 to 0.300"),
             "{st}"
         );
+    }
+
+    /// A taper (each 0.3 mm move 0.3 % wider than the one before, 0.40 to 0.48 mm^2) is
+    /// cut into runs whose moves lie within `RUN_TOL` of each other, every move within
+    /// it of its run's mean; short moves (0.05 mm, whose own sections are noisy) go in
+    /// groups of at least `SPREAD_MM`; a bead of one width is one run.
+    #[test]
+    fn a_taper_is_cut_into_runs_within_the_tolerance() {
+        let moves: Vec<Asked> = (0..62)
+            .map(|k| asked(0.3, 0.40 * 1.003f64.powi(k)))
+            .collect();
+        let cut = runs(&moves);
+        assert!(cut.len() > 10, "{cut:?}");
+        assert_eq!((cut[0].0, cut.last().unwrap().1), (0, moves.len()));
+        for w in cut.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
+        }
+        for &(a, b) in &cut {
+            let mut run = Asked::default();
+            for m in &moves[a..b] {
+                run.merge(m);
+            }
+            let mean = run.s_len / run.len;
+            assert!(run.max <= run.min * (1.0 + RUN_TOL) + 1e-12);
+            assert!((run.max / mean - 1.0).max(1.0 - run.min / mean) <= RUN_TOL);
+        }
+        // Short moves alternating 2 % either side of 0.40 (XY's rounding): one run.
+        let noisy: Vec<Asked> = (0..40)
+            .map(|k| asked(0.05, if k % 2 == 0 { 0.408 } else { 0.392 }))
+            .collect();
+        assert_eq!(runs(&noisy), [(0, 40)]);
+        assert_eq!(runs(&[asked(1.0, 0.40), asked(2.0, 0.40)]), [(0, 2)]);
     }
 }
