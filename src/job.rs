@@ -17,8 +17,13 @@ pub const FORMAT_VERSION: u16 = 1;
 /// Version of a job with `Command::Section` (per-bead sections): version 1's header and
 /// commands, plus that one command. A version 1 reader refuses it by its version.
 pub const FORMAT_VERSION_SECTIONS: u16 = 2;
+/// Version of a job with a `Command::Section` inside a bead (right after a print command):
+/// version 2's encoding, whose executor took sections between beads only. A board built
+/// before it would have taken such a job and faulted mid-print (`SectionInBead`, the bead
+/// half laid); by its version it refuses the job before the first move.
+pub const FORMAT_VERSION_BEAD_SECTIONS: u16 = 3;
 /// Highest version this build reads (it reads every version from 1).
-pub const FORMAT_VERSION_MAX: u16 = FORMAT_VERSION_SECTIONS;
+pub const FORMAT_VERSION_MAX: u16 = FORMAT_VERSION_BEAD_SECTIONS;
 
 /// Whether this build reads jobs of format `version`.
 pub fn reads_version(version: u16) -> bool {
@@ -27,14 +32,18 @@ pub fn reads_version(version: u16) -> bool {
 
 /// The format version a job with these commands is written as: the lowest that holds them.
 pub fn version_for<'a>(commands: impl IntoIterator<Item = &'a Command>) -> u16 {
-    if commands
-        .into_iter()
-        .any(|c| matches!(c, Command::Section { .. }))
-    {
-        FORMAT_VERSION_SECTIONS
-    } else {
-        FORMAT_VERSION
+    let mut version = FORMAT_VERSION;
+    // Whether a bead is open: the last command other than a section was a print.
+    let mut in_bead = false;
+    for c in commands {
+        match c {
+            Command::Section { .. } if in_bead => return FORMAT_VERSION_BEAD_SECTIONS,
+            Command::Section { .. } => version = FORMAT_VERSION_SECTIONS,
+            Command::Print { .. } => in_bead = true,
+            _ => in_bead = false,
+        }
     }
+    version
 }
 /// Longest encoded header accepted, bytes.
 pub const MAX_HEADER_LEN: usize = 512;
@@ -544,6 +553,31 @@ mod tests {
         (h, body, cmds)
     }
 
+    /// A section between beads needs version 2; one right after a print (inside a bead,
+    /// which a version 2 board's executor refused mid-print) needs version 3, so that such
+    /// a board refuses the job by its version before the first move.
+    #[test]
+    fn a_section_inside_a_bead_is_version_3() {
+        let p = Command::Print {
+            dx: 1000,
+            dy: 0,
+            material: 0,
+        };
+        let t = Command::Travel {
+            x: 0,
+            y: 1000,
+            z: 600,
+        };
+        let sec = Command::Section { um2: 500_000 };
+        assert_eq!(version_for(&[p, p, t, p]), FORMAT_VERSION);
+        assert_eq!(version_for(&[sec, p, t, sec, p]), FORMAT_VERSION_SECTIONS);
+        assert_eq!(version_for(&[p, t, sec, sec, p]), FORMAT_VERSION_SECTIONS);
+        assert_eq!(version_for(&[sec, p, sec, p]), FORMAT_VERSION_BEAD_SECTIONS);
+        assert_eq!(version_for(&[p, sec, t, p]), FORMAT_VERSION_BEAD_SECTIONS);
+        assert!(reads_version(FORMAT_VERSION_BEAD_SECTIONS));
+        assert!(!reads_version(FORMAT_VERSION_BEAD_SECTIONS + 1));
+    }
+
     #[test]
     fn a_version_2_body_holds_sections_and_a_version_1_body_may_not() {
         let (h, body, cmds) = with_section(FORMAT_VERSION_SECTIONS);
@@ -584,7 +618,7 @@ mod tests {
 
     #[test]
     fn versions_past_this_build_are_refused_by_name() {
-        for (v, ok) in [(0, false), (1, true), (2, true), (3, false)] {
+        for (v, ok) in [(0, false), (1, true), (2, true), (3, true), (4, false)] {
             let (mut h, _, _) = sample();
             h.format_version = v;
             let mut buf = [0u8; 600];
@@ -597,10 +631,10 @@ mod tests {
                         e,
                         JobError::Version {
                             found: v,
-                            supported: 2
+                            supported: 3
                         }
                     );
-                    assert!(e.to_string().contains("reads versions 1 to 2"), "{e}");
+                    assert!(e.to_string().contains("reads versions 1 to 3"), "{e}");
                 }
             }
         }
