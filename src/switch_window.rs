@@ -239,7 +239,7 @@ pub const TURNS_AHEAD: usize = 64;
 fn turn_window(v: f32, near: f32, limit: f32, turns: impl Iterator<Item = Turn>) -> f32 {
     // Squared chords throughout and one root at the end: a software `sqrtf` is about 60
     // instructions, and two a turn over 64 turns took the soft machine's dearest tick to
-    // 8 375 instructions (5 270 without).
+    // 8 375 instructions (5 256 without).
     let chord2 = |a: [f32; 2], b: [f32; 2]| {
         let (x, y) = (a[0] - b[0], a[1] - b[1]);
         x * x + y * y
