@@ -24,6 +24,8 @@ use dollop_host::slicer::{self, gcode_judge};
 use std::path::{Path, PathBuf};
 use std::process::Command as Process;
 
+mod prusa_cli;
+
 /// Most wrong material at a region's start, mm along the path (the bound).
 const BOUND_MM: f64 = 0.05;
 /// The section's bound, relative (the issue's).
@@ -167,30 +169,18 @@ fn prusa(dir: &Path, name: &str, volumes: &Volumes, extra: &[&str]) -> String {
     let model = dir.join(format!("{name}.amf"));
     std::fs::write(&model, amf(volumes)).unwrap();
     let out = dir.join(format!("{name}-prusa.gcode"));
-    let r = Process::new("prusa-slicer")
-        .arg("--export-gcode")
-        .arg(&model)
-        .arg("--load")
-        .arg(data().join("prusaslicer-paste.ini"))
-        .args(["--center", "100,100"])
-        // The perimeters wider than the infill, the first layer as the others.
-        .args(["--perimeter-extrusion-width", &PERIMETER_MM.to_string()])
-        .args([
-            "--external-perimeter-extrusion-width",
-            &PERIMETER_MM.to_string(),
-        ])
-        .args(["--first-layer-extrusion-width", "0"])
-        .args(extra)
-        .arg("--output")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        r.status.success(),
-        "prusa-slicer: {}",
-        String::from_utf8_lossy(&r.stderr)
-    );
-    std::fs::read_to_string(out).unwrap()
+    let width = PERIMETER_MM.to_string();
+    // The perimeters wider than the infill, the first layer as the others.
+    let mut args = vec![
+        "--perimeter-extrusion-width",
+        &width,
+        "--external-perimeter-extrusion-width",
+        &width,
+        "--first-layer-extrusion-width",
+        "0",
+    ];
+    args.extend_from_slice(extra);
+    prusa_cli::slice(&model, &out, &args)
 }
 
 fn cura_resources() -> Option<PathBuf> {

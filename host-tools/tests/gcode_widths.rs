@@ -19,6 +19,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command as Process;
 
+mod prusa_cli;
+
 /// The section's bound, relative (the issue's).
 const SECTION: f64 = 0.02;
 /// Layer height, mm.
@@ -243,24 +245,7 @@ fn prusaslicer_arachne_tapers_are_laid_run_by_run() {
     let model = dir.path().join("wedge.stl");
     std::fs::write(&model, wedge_stl()).unwrap();
     let out = dir.path().join("wedge.gcode");
-    let ini =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/slicers/prusaslicer-paste.ini");
-    let r = Process::new("prusa-slicer")
-        .arg("--export-gcode")
-        .arg(&model)
-        .arg("--load")
-        .arg(&ini)
-        .args(["--center", "100,100", "--perimeter-generator", "arachne"])
-        .arg("--output")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        r.status.success(),
-        "prusa-slicer: {}",
-        String::from_utf8_lossy(&r.stderr)
-    );
-    let g = std::fs::read_to_string(out).unwrap();
+    let g = prusa_cli::slice(&model, &out, &["--perimeter-generator", "arachne"]);
     let Run { imported, r, .. } = run("PrusaSlicer Arachne wedge", &g, None, false);
     let st = &imported.summary.sections;
     assert!(st.mixed_beads > 0, "no bead mixes widths: {st}");
