@@ -23,6 +23,8 @@
 /// the firmware built on `control_state`'s stack frame (7 KiB, over the 4 KiB gate).
 const BLOCK: i32 = 8;
 
+use crate::fast::{max, min};
+
 /// Blocks an envelope holds: the outputs' half window of the largest ring.
 const QUEUE: usize = crate::capacity::RAMP_CAPACITY / 2 / BLOCK as usize;
 
@@ -219,7 +221,7 @@ impl FlowFollow {
             (self.frames, v, v, 1)
         } else {
             let d = self.a * (self.frames - first) as f32;
-            (first, lo.min(v + d), hi.max(v - d), n + 1)
+            (first, min(lo, v + d), max(hi, v - d), n + 1)
         };
         if self.block.3 == BLOCK {
             let (first, lo, hi, _) = self.block;
@@ -281,32 +283,33 @@ impl FlowFollow {
             // Nothing kept back for the speed: a floor of a quarter of the limit (tried
             // with the follower through every turn) moved the peaks at 500 mm/s^2 by at
             // most 9 mm/s^2 either way and the section away from turns not at all.
-            libm::sqrtf(left.max(0.0))
+            libm::sqrtf(max(left, 0.0))
         };
         let a = self.a;
         let c = self.frames - self.half;
-        let low = self.low.at(c, a, true).map_or(v, |x| x.min(v));
-        let high = self.high.at(c, a, false).map_or(v, |x| x.max(v));
-        self.fall = v.max(self.fall - a);
-        self.rise = v.min(self.rise + a);
-        let lo = low.min(self.rise);
-        let hi = high.max(self.fall);
+        let low = self.low.at(c, a, true).map_or(v, |x| min(x, v));
+        let high = self.high.at(c, a, false).map_or(v, |x| max(x, v));
+        self.fall = max(v, self.fall - a);
+        self.rise = min(v, self.rise + a);
+        let lo = min(low, self.rise);
+        let hi = max(high, self.fall);
         // `min`/`max`, not `clamp`: it panics on NaN bounds, and its message would pull
         // float formatting into the tick.
-        let back = (self.e / RETURN_FRAMES)
-            .min(RETURN_SHARE * vm)
-            .max(-RETURN_SHARE * vm);
+        let back = max(
+            min(self.e / RETURN_FRAMES, RETURN_SHARE * vm),
+            -RETURN_SHARE * vm,
+        );
         // Past the bead's end the flow is no guide: the head keeps to the mean while the
         // lag returns (dropping it at once would step the head by it).
         if printing {
             let want = LOW_WEIGHT * lo + (1.0 - LOW_WEIGHT) * hi + back;
-            self.u = want.min(self.u + slew).max((self.u - slew).max(0.0));
+            self.u = max(min(want, self.u + slew), max(self.u - slew, 0.0));
             // The lag lies along the path's tangent, which turns: a lag changing at `de`
             // moves the head across the path at `2 de turn` on top of the turn's own.
             // Within what the turn leaves, the head keeps nearer the mean's speed.
             if turn2 > 0.0 {
-                let most = libm::sqrtf(left.max(0.0) / (4.0 * turn2));
-                self.u = self.u.min(vm + most).max(vm - most).max(0.0);
+                let most = libm::sqrtf(max(left, 0.0) / (4.0 * turn2));
+                self.u = max(max(min(self.u, vm + most), vm - most), 0.0);
             }
         } else {
             // Past the bead's end the flow is no guide: the head keeps to the mean, which

@@ -5,11 +5,27 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+/// `$e`, its instructions counted into `crate::probe` section `$i` with the `probe`
+/// feature (bench-m4's map of the tick); `$e` alone without.
+macro_rules! probe {
+    ($i:ident, $e:expr) => {{
+        #[cfg(feature = "probe")]
+        let start = crate::probe::now();
+        let r = $e;
+        #[cfg(feature = "probe")]
+        crate::probe::add(crate::probe::$i, start);
+        r
+    }};
+}
+#[cfg(feature = "probe")]
+pub mod probe;
+
 pub mod capacity;
 pub mod command;
 pub mod config;
 pub mod device;
 pub mod executor;
+mod fast;
 pub mod flow_follow;
 pub mod flow_model;
 mod fmt;

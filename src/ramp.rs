@@ -155,6 +155,11 @@ impl<const N: usize> Ramp<N> {
         self.narrowing |= self.goal != self.half || self.half != self.window / 2;
     }
 
+    /// The half window the mean is heading for (`set_goal`).
+    pub fn goal(&self) -> u32 {
+        self.goal
+    }
+
     /// Keeps the push on its slow path for the next frame (`push_narrow` says when it is
     /// done otherwise): the flow's follower (`crate::flow_follow`) is on.
     pub fn keep_slow(&mut self) {

@@ -86,11 +86,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
         if self.machine.syringes {
             self.displace_plungers();
         }
-        let flow = self.model.step()?;
+        let flow = probe!(FLOW, self.model.step())?;
         self.last_q = flow.q;
         let dv = flow.dv;
         // Phases may hand over to the next within a cycle (end of bead -> travel ...);
         // each hand-over consumes a plan item, so this is bounded by the plan's length.
+        #[cfg(feature = "probe")]
+        let start = crate::probe::now();
         let mut dv_left = dv;
         for _ in 0..=PLAN_CAPACITY {
             match self.phase {
@@ -183,11 +185,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
             }
         }
+        #[cfg(feature = "probe")]
+        #[cfg(feature = "probe")]
+        crate::probe::add(crate::probe::PHASES, start);
         if self.pause.requested && matches!(self.phase, Phase::Print { stopping: false }) {
             self.pause_check();
         }
         if matches!(self.phase, Phase::Print { .. }) {
-            self.decide_valves()?;
+            probe!(DECIDE, self.decide_valves())?;
         }
         Ok(dv)
     }

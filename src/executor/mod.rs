@@ -30,6 +30,7 @@ mod pause;
 mod plan;
 mod ramp;
 mod report;
+mod sizing;
 mod valves;
 use drive::settle_limit;
 pub use park::{ParkStage, RefillError};
@@ -173,6 +174,8 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// Ramped, and the valves' flow changes are first-order ones that
     /// `crate::switch_window` sizes a window for at each decision.
     sizing: bool,
+    /// A valve decision's sizing of the ramp window, under way (`sizing`).
+    sizer: Option<sizing::Pending<R>>,
     /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
     /// 600 B: last, so that the fields the tick reads keep their short offsets.
     follow: crate::flow_follow::FlowFollow,
@@ -229,6 +232,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             step_ramps: StepRamps::new(),
             ramped: false,
             sizing: false,
+            sizer: None,
             follow: crate::flow_follow::FlowFollow::new(),
         }
     }

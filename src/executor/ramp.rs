@@ -14,6 +14,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// The head at rest where the plan has it, valves as commanded: the whole ramp window
     /// that frame (after a job begins, a config loads, or the outputs went safe).
     pub(super) fn hold_ramp(&mut self) {
+        self.sizer = None;
         if self.ramped {
             let f = self.frame();
             let m = &self.machine;
@@ -75,17 +76,19 @@ impl<R: Real, const N: usize> Executor<R, N> {
         for _ in 0..cycles {
             self.push_frame(dv);
         }
-        let target = self.ramp.position(&self.step_ramps);
-        if let Err(f) = self.move_head(target, cycles, out) {
+        let target = probe!(MEAN, self.ramp.position(&self.step_ramps));
+        if let Err(f) = probe!(STEPS, self.move_head(target, cycles, out)) {
             self.safe_state(f, out);
             return Err(f);
         }
-        if let Err(f) = self.move_plungers(true, cycles, out) {
-            self.safe_state(f, out);
-            return Err(f);
-        }
-        self.set_valves(self.ramp.current().valves, out);
-        Ok(self.ramped_report_at(target))
+        probe!(REPORT, {
+            if let Err(f) = self.move_plungers(true, cycles, out) {
+                self.safe_state(f, out);
+                return Err(f);
+            }
+            self.set_valves(self.ramp.current().valves, out);
+            Ok(self.ramped_report_at(target))
+        })
     }
 
     /// The cycle just planned enters the ramp window; `dv` is its volume alone
@@ -96,21 +99,31 @@ impl<R: Real, const N: usize> Executor<R, N> {
             // In tail position: the usual path keeps its registers.
             return self.push_frame_narrow(dv);
         }
-        let mut f = self.frame();
+        let mut f = probe!(FRAME, self.frame());
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-        self.ramp.push(f, &mut self.step_ramps);
+        probe!(RING, self.ramp.push(f, &mut self.step_ramps));
     }
 
     /// `push_frame` while a valve decision's window narrows the ramp's mean.
     #[inline(never)]
     fn push_frame_narrow(&mut self, dv: Vol) {
-        let mut f = self.frame();
+        let mut f = probe!(FRAME, self.frame());
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-        self.ramp.push_narrow(f, &mut self.step_ramps);
+        probe!(RING, self.ramp.push_narrow(f, &mut self.step_ramps));
+        if self.sizer.is_some() {
+            // A valve decision's sizing, a step a frame (`sizing_step`), on the slow path
+            // only: the usual tick pays nothing for it.
+            probe!(SIZING, self.sizing_step());
+            if self.sizer.is_some() {
+                self.ramp.keep_slow();
+            }
+        }
         if self.follow.active() {
-            self.follow.push(f.dv);
-            self.follow_flow();
-            self.ramp.keep_slow();
+            probe!(FOLLOWER, {
+                self.follow.push(f.dv);
+                self.follow_flow();
+                self.ramp.keep_slow();
+            });
         }
     }
 
@@ -121,7 +134,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let c = *self.ramp.current();
         let printing = matches!(c.state, RunState::Printing | RunState::Settling);
         let (base, off) = self.ramp.mean_parts(&mut self.step_ramps);
-        let d = self.follow.follow(base, off, c.dv, printing);
+        let d = probe!(FOLLOW, self.follow.follow(base, off, c.dv, printing));
         self.ramp.bend(d, &mut self.step_ramps);
     }
 }

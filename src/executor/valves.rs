@@ -2,12 +2,10 @@
 //! cursor that runs ahead of the head by the lead window, the ramp window sized at each
 //! decision, and the valve outputs. Stops at the decision: the flow model carries it out.
 
-use super::plan::Item;
 use super::{cycles32, Executor, Phase, PREDICT_BUDGET, PREDICT_INTERVAL};
 use crate::config::Machine;
 use crate::flow_model::predict::{Goal, Outcome, Prediction};
 use crate::flow_model::FlowModel;
-use crate::motion::V2;
 use crate::outputs::Outputs;
 use crate::real::Real;
 use crate::state::Fault;
@@ -189,55 +187,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         Ok(())
-    }
-
-    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
-    /// it opens, none to stop): once per decision, from the channel's contents now
-    /// (`crate::switch_window`); the machine's window where those do not say.
-    #[inline(never)]
-    pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
-        let (head, inv_s) = (self.head, self.inv_s);
-        let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
-        // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
-        // By reference, in one pass: a segment is 23 words, and copying each twice a turn
-        // (as two zipped iterators did) was a good part of a decision's cost.
-        let mut items = self.plan.iter();
-        let mut prev = match items.next() {
-            Some(Item::Seg(s)) => Some(s),
-            _ => None,
-        };
-        let turns = core::iter::from_fn(move || loop {
-            let a = prev.filter(|a| !a.last)?;
-            let Some(Item::Seg(b)) = items.next() else {
-                return None;
-            };
-            prev = Some(b);
-            if let Some(f) = a.fillet {
-                return Some(crate::switch_window::Turn {
-                    at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
-                    radius: f.radius.to_f32(),
-                    from: f2(a.dir),
-                    to: f2(b.dir),
-                });
-            }
-        });
-        let (h, follow) = crate::switch_window::switch_half(
-            &self.machine,
-            &self.model,
-            self.model.commanded(),
-            opening,
-            turns,
-        )
-        .unwrap_or((self.machine.ramp_cycles / 2, false));
-        self.ramp.set_goal(h);
-        if follow {
-            // Sized for the turns and rounding only: the follower takes the flow's change.
-            // The bead's speed per volume: position units (1e-4 mm) per volume unit
-            // (1e-10 mm^3, `Vol`), through the bead's own section.
-            let per_dv = self.inv_s.to_f32() * 1.0e-6;
-            self.follow.start(per_dv);
-            self.ramp.keep_slow();
-        }
     }
 
     /// Whether prediction work of the kind whose turn falls on cycles of `parity` runs

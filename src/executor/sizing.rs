@@ -1,0 +1,227 @@
+//! The ramp window sized at each valve decision (`crate::switch_window`), over the cycles
+//! after the decision's: the contents in the next, whether the follower takes the flow's
+//! change in the one after (several pastes in the channel), the change itself in three
+//! more (an `expf` or a few each), then the bead's turns ahead, `WALK_ITEMS` plan items a
+//! cycle. Done in the decision's cycle, the whole was up to 5 000
+//! instructions on the soft machine's dearest tick (bench-m4's `soft`); a step now is at
+//! most about 700. Stops at the window's size: the ramp ring moves to it
+//! (`Ramp::set_goal`).
+
+use super::plan::{Item, Seg};
+use super::Executor;
+use crate::real::Real;
+use crate::switch_window::{Sizing, Turn};
+use crate::vol::Vol;
+
+/// Plan items walked a cycle from a decision on, turns or not: the walk's cost is the
+/// items', about 30 instructions for a straight segment and 100 for a turn (the plan's
+/// whole 256 items took up to 3 000 instructions at the decision). The whole plan in 64
+/// cycles (6.4 ms at 10 kHz, 64 um of bead at 10 mm/s).
+const WALK_ITEMS: usize = 4;
+
+/// A decision's sizing, under way.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Pending<R> {
+    /// Made in cycle `cycle`, sized in the next: the valves going from the inlets of
+    /// `closing` (bit mask) to `opening`, at plan volume `head` in a bead of `inv_s`.
+    Start {
+        opening: Option<u8>,
+        closing: u32,
+        head: Vol,
+        inv_s: R,
+        cycle: u64,
+    },
+    /// The flow's change being sized, then the turns ahead being walked.
+    Walk(Walk<R>),
+}
+
+/// A decision's walk of the turns ahead, under way.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Walk<R> {
+    sizing: Sizing,
+    /// The plan volume and bead section the turns' distances are taken from (the
+    /// decision's).
+    head: Vol,
+    inv_s: R,
+    /// The plan item to look at next, and its fillet's start, by which it is found again
+    /// after the items before it left the plan.
+    next: usize,
+    next_u: Vol,
+}
+
+impl<R: Real, const N: usize> Executor<R, N> {
+    /// Sizes the ramp window for the valve command about to be made (`opening` the inlet
+    /// it opens, none to stop), from the channel's contents then
+    /// (`crate::switch_window`); the machine's window where those do not say. Over the
+    /// cycles after the decision's (`sizing_step`): the flow's change in the next, the
+    /// turns ahead a few at a time after it, so that the decision's cycle, which the
+    /// valve command already makes the dearest, carries none of it.
+    pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
+        self.sizer = Some(Pending::Start {
+            opening,
+            closing: self.model.commanded(),
+            head: self.head,
+            inv_s: self.inv_s,
+            cycle: self.cycle,
+        });
+        // Its steps go with the ring's slow path (`push_frame_narrow`).
+        self.ramp.keep_slow();
+    }
+
+    /// The next step of a decision's sizing (`size_ramp`): the contents, the follower's
+    /// check, the flow's window, or the next `WALK_ITEMS` plan items of the walk over the
+    /// turns ahead. The window keeps the ring's width until the flow's change is sized,
+    /// four or five cycles after the decision (a real valve's dead time is a hundred); it
+    /// then narrows to that and widens as the walk finds turns that need it. In place: a
+    /// sizing is some 150 bytes, and copying it out and back took a step from 430 to 670
+    /// instructions. Out of line: only in the cycles after a decision.
+    #[inline(never)]
+    pub(super) fn sizing_step(&mut self) {
+        let cycle = self.cycle;
+        let w = match self.sizer.as_mut() {
+            None => return,
+            Some(Pending::Start { cycle: c, .. }) if *c == cycle => return,
+            Some(&mut Pending::Start {
+                opening,
+                closing,
+                head,
+                inv_s,
+                ..
+            }) => return self.size_flow(opening, closing, head, inv_s),
+            Some(Pending::Walk(w)) => w,
+        };
+        let machine_half = self.machine.ramp_cycles / 2;
+        let (goal, done) = if w.sizing.checking() {
+            // The follower's check looks no further than the lead window: the flow's
+            // change reaches no further (its dead time and eight time constants at top
+            // speed).
+            let until = w.head + self.window;
+            let turns = turns_from(self.plan.as_slices(), w.head, w.inv_s, until);
+            if !w.sizing.check(turns) {
+                (Some(machine_half), true)
+            } else {
+                if w.sizing.follow {
+                    // Sized for the turns and rounding only: the follower takes the
+                    // flow's change. The bead's speed per volume: position units (1e-4 mm)
+                    // per volume unit (1e-10 mm^3, `Vol`), through the bead's own section.
+                    self.follow.start(w.inv_s.to_f32() * 1.0e-6);
+                    self.ramp.keep_slow();
+                }
+                (None, false)
+            }
+        } else if !w.sizing.sized() {
+            // The cycle that sizes the flow's change walks no turns yet (the rise's step
+            // and a walk's items together were the soft machine's dearest tick).
+            let goal = w
+                .sizing
+                .step()
+                .then(|| w.sizing.half(&self.machine).unwrap_or(machine_half));
+            (goal, false)
+        } else {
+            let ended = walk_items(self.plan.as_slices(), w);
+            let h = w.sizing.half(&self.machine);
+            (
+                Some(h.unwrap_or(machine_half)),
+                ended || h.is_none() || w.sizing.walk.full(),
+            )
+        };
+        if let Some(g) = goal {
+            self.ramp.set_goal(g);
+        }
+        if done {
+            self.sizer = None;
+        }
+    }
+
+    /// The contents' part of the window (`switch_window::switch_start`).
+    fn size_flow(&mut self, opening: Option<u8>, closing: u32, head: Vol, inv_s: R) {
+        self.sizer =
+            crate::switch_window::switch_start(&self.machine, &self.model, closing, opening).map(
+                |sizing| {
+                    Pending::Walk(Walk {
+                        sizing,
+                        head,
+                        inv_s,
+                        next: 0,
+                        next_u: Vol::ZERO,
+                    })
+                },
+            );
+        if self.sizer.is_none() {
+            self.ramp.set_goal(self.machine.ramp_cycles / 2);
+        }
+    }
+}
+
+/// The next `WALK_ITEMS` plan items of walk `w`, its turns fed; whether the bead (or the
+/// plan) ended.
+fn walk_items<R: Real>(slices: (&[Item<R>], &[Item<R>]), w: &mut Walk<R>) -> bool {
+    // The item looked at next moved towards the front as items before it left.
+    let mut k = w.next.min(slices.0.len() + slices.1.len());
+    if w.next > 0 {
+        while k > 0 && at(slices, k).is_none_or(|s| s.u_arc != w.next_u) {
+            k -= 1;
+        }
+    }
+    let mut ended = false;
+    for _ in 0..WALK_ITEMS {
+        let (Some(a), Some(b)) = (at(slices, k).filter(|a| !a.last), at(slices, k + 1)) else {
+            ended = true;
+            break;
+        };
+        k += 1;
+        if let Some(t) = turn(a, b, w.head, w.inv_s) {
+            w.sizing.walk.feed(t);
+        }
+    }
+    w.next = k;
+    w.next_u = at(slices, k).map_or(Vol::ZERO, |s| s.u_arc);
+    ended
+}
+
+/// The plan's print segment at index `k` of its two slices, if it is one.
+fn at<'a, R>(slices: (&'a [Item<R>], &'a [Item<R>]), k: usize) -> Option<&'a Seg<R>> {
+    let item = if k < slices.0.len() {
+        slices.0.get(k)
+    } else {
+        slices.1.get(k - slices.0.len())
+    };
+    match item {
+        Some(Item::Seg(s)) => Some(s),
+        _ => None,
+    }
+}
+
+/// The bead's turns from the plan's front whose fillets start before plan volume `until`:
+/// each segment's fillet into the next, to the bead's end. By reference, in one pass: a
+/// segment is 23 words, and copying each twice a turn (as two zipped iterators did) was a
+/// good part of a decision's cost.
+fn turns_from<'a, R: Real>(
+    slices: (&'a [Item<R>], &'a [Item<R>]),
+    head: Vol,
+    inv_s: R,
+    until: Vol,
+) -> impl Iterator<Item = Turn> + Clone + 'a {
+    let mut k = 0;
+    core::iter::from_fn(move || loop {
+        let a = at(slices, k).filter(|a| !a.last && a.u_arc <= until)?;
+        let b = at(slices, k + 1)?;
+        k += 1;
+        if let Some(t) = turn(a, b, head, inv_s) {
+            return Some(t);
+        }
+    })
+}
+
+/// Segment `a`'s fillet into `b`, if it has one, `at` mm of path past plan volume `head`
+/// in a bead of `inv_s` (1 / section).
+#[inline(always)]
+fn turn<R: Real>(a: &Seg<R>, b: &Seg<R>, head: Vol, inv_s: R) -> Option<Turn> {
+    let f2 = |v: crate::motion::V2<R>| [v[0].to_f32(), v[1].to_f32()];
+    a.fillet.map(|f| Turn {
+        at: ((a.u_arc - head).mm3::<R>() * inv_s).to_f32(),
+        radius: f.radius.to_f32(),
+        from: f2(a.dir),
+        to: f2(b.dir),
+    })
+}
