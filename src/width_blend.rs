@@ -129,7 +129,8 @@ impl WidthBlend {
         let mut change = [0; 2];
         let held = self.held.iter_mut().zip(self.offset.iter().zip(&self.bend));
         for (c, (held, (offset, bend))) in change.iter_mut().zip(held) {
-            let now = libm::roundf((offset + bend) * span as f32) as i32;
+            // `Real::round_i32`: as `roundf` then `as i32`, without the call.
+            let now = crate::real::Real::round_i32((offset + bend) * span as f32);
             *c = now.wrapping_sub(*held);
             *held = now;
         }

@@ -385,7 +385,7 @@ fn main() -> ! {
     // BENCH_ONLY=valves|pastes|syringes|ramps|soft runs just one machine.
     let only: Option<&str> = option_env!("BENCH_ONLY");
     // The soft machine's ticks with the follower on are over the goal (40 % of them, up
-    // to 3 402 instructions; `--features probe` maps them: docs/performance.md): printed,
+    // to 3 375 instructions; `--features probe` maps them: docs/performance.md): printed,
     // not gated, until that is cut.
     let gated = |key: &str| key != "soft";
     let machines: [(&str, &str, &[u8]); 5] = [
