@@ -231,6 +231,34 @@ impl Sizing {
     }
 }
 
+#[cfg(test)]
+impl Sizing {
+    /// A sizing with its flow's change sized (no window for it), walking `walk`'s turns.
+    pub(crate) fn walking(walk: TurnWalk) -> Self {
+        Sizing {
+            w: 0.0,
+            limit: 1.0,
+            follow: false,
+            walk,
+            flow: FlowChange {
+                v_o: 0.0,
+                v_c: 0.0,
+                tau_r: 1.0,
+                tau_d: 1.0,
+                delay: 0.0,
+                settle: 0.0,
+                v_turn: 0.0,
+                t: 0.0,
+                reach: 0.0,
+                v_check: 0.0,
+                whole: 0.0,
+                boxed: None,
+                stage: 4,
+            },
+        }
+    }
+}
+
 /// `switch_half`'s first step: whether the contents are sized here at all (`None`: the
 /// machine's window), and the flow's change they make.
 pub fn switch_start<R: Real, const N: usize>(

@@ -225,3 +225,120 @@ fn turn<R: Real>(a: &Seg<R>, b: &Seg<R>, head: Vol, inv_s: R) -> Option<Turn> {
         to: f2(b.dir),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capacity::PLAN_CAPACITY;
+    use crate::motion::Fillet;
+    use crate::switch_window::TurnWalk;
+    use heapless::Deque;
+
+    /// A bead of `n` segments of 1 mm, every third one straight into the next (no fillet),
+    /// the others turning by 10 degrees but for the 62nd fillet (or the last), which
+    /// turns by 150: the window is that turn's only if the walk feeds every fillet once,
+    /// and stops after 64.
+    fn bead(n: usize) -> Deque<Item<f32>, PLAN_CAPACITY> {
+        let mut plan = Deque::new();
+        let fillets = (0..n - 1).filter(|k| k % 3 != 2).count();
+        let sharp = fillets.min(62);
+        let (mut angle, mut seen) = (0.0f32, 0);
+        for k in 0..n {
+            let has = k + 1 < n && k % 3 != 2;
+            seen += has as usize;
+            let dir = [libm::cosf(angle), libm::sinf(angle)];
+            if has {
+                angle += if seen == sharp { 2.618 } else { 0.1745 };
+            }
+            let u = Vol(k as i64 * 4_800_000_000);
+            let seg = Seg {
+                material: 0,
+                start: [k as f32, 0.0],
+                dir,
+                len: 1.0,
+                fillet: has.then_some(Fillet {
+                    tangent: 0.05,
+                    centre: [0.0; 2],
+                    radius: 0.05,
+                    start_angle: 0.0,
+                    sweep: 1.0,
+                }),
+                u_start: u,
+                u_arc: Vol(u.0 + 4_500_000_000),
+                u_end: Vol(u.0 + 4_800_000_000),
+                last: k == n - 1,
+                index: k as u32,
+                inv_s: 1.0 / 0.48,
+            };
+            assert!(plan.push_back(Item::Seg(seg)).is_ok());
+        }
+        plan
+    }
+
+    fn walker() -> Walk<f32> {
+        Walk {
+            sizing: Sizing::walking(TurnWalk::new(12.0, 0.0, 350.0)),
+            head: Vol::ZERO,
+            inv_s: 1.0 / 0.48,
+            next: 0,
+            next_u: Vol::ZERO,
+        }
+    }
+
+    /// The walk a few items a cycle, with the head passing items behind it in between,
+    /// sizes the same window as the whole walk at once, and ends at the bead's end or at
+    /// the most turns it looks at.
+    #[test]
+    fn a_walk_in_steps_sizes_what_the_whole_walk_does() {
+        for n in [5, 40, 200] {
+            let mut plan = bead(n);
+            let mut whole = TurnWalk::new(12.0, 0.0, 350.0);
+            for t in turns_from(plan.as_slices(), Vol::ZERO, 1.0 / 0.48, Vol(i64::MAX)) {
+                whole.feed(t);
+            }
+            let mut w = walker();
+            let mut steps = 0;
+            let mut popped = 0;
+            while !walk_items(plan.as_slices(), &mut w) && !w.sizing.walk.full() {
+                steps += 1;
+                // The head passes an item now and then, always one the walk is past.
+                if steps % 3 == 0 && w.next > 1 {
+                    plan.pop_front();
+                    popped += 1;
+                }
+                assert!(steps <= PLAN_CAPACITY, "the walk must end");
+            }
+            assert!(n < 40 || popped > 0, "{n}: items left while it walked");
+            assert_eq!(
+                w.sizing.walk.window().to_bits(),
+                whole.window().to_bits(),
+                "{n} segments"
+            );
+            // The sharp turn's: v / limit * |to - from| for 150 degrees.
+            let sharp = 12.0 / 350.0 * 2.0 * libm::sinf(1.309);
+            assert!(
+                (whole.window() - sharp).abs() < 1e-6,
+                "{n}: {} against {sharp}",
+                whole.window()
+            );
+        }
+    }
+
+    /// An item the walk was to look at next that left the plan (the head overtook the
+    /// walk) restarts it at the plan's front: it still ends.
+    #[test]
+    fn a_walk_overtaken_by_the_head_goes_on_from_the_front() {
+        let mut plan = bead(60);
+        let mut w = walker();
+        assert!(!walk_items(plan.as_slices(), &mut w));
+        for _ in 0..10 {
+            plan.pop_front();
+        }
+        let mut steps = 0;
+        while !walk_items(plan.as_slices(), &mut w) && !w.sizing.walk.full() {
+            steps += 1;
+            assert!(steps <= PLAN_CAPACITY, "the walk must end");
+        }
+        assert!(w.sizing.walk.window() > 0.0);
+    }
+}
