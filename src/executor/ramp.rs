@@ -107,6 +107,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let mut f = self.frame();
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         self.ramp.push_narrow(f, &mut self.step_ramps);
+        // The soft machines' slowing at tight fillets, for the next cycle's position
+        // (`turns`): here, on the narrowed ring's path, the others pay nothing for it.
+        self.slow_at_turns();
         if self.follow.active() {
             self.follow.push(f.dv);
             self.follow_flow();

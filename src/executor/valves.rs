@@ -197,6 +197,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     #[inline(never)]
     pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
         let (head, inv_s) = (self.head, self.inv_s);
+        self.follow_wait = None;
         let f2 = |v: V2<R>| [v[0].to_f32(), v[1].to_f32()];
         // The bead's turns ahead: each segment's fillet into the next, to the bead's end.
         // By reference, in one pass: a segment is 23 words, and copying each twice a turn
@@ -230,13 +231,25 @@ impl<R: Real, const N: usize> Executor<R, N> {
         )
         .unwrap_or((self.machine.ramp_cycles / 2, false));
         self.ramp.set_goal(h);
+        self.mean_half = h;
         if follow {
             // Sized for the turns and rounding only: the follower takes the flow's change.
             // The bead's speed per volume: position units (1e-4 mm) per volume unit
             // (1e-10 mm^3, `Vol`), through the bead's own section.
             let per_dv = self.inv_s.to_f32() * 1.0e-6;
-            self.follow.start(per_dv);
-            self.ramp.keep_slow();
+            if self.turn_slow.turning() {
+                // The head is off the flow's speed round a tight fillet (`turns`): the
+                // follower, which aims the head at the flow's speed, would undo that
+                // inside the turn (565 mm/s^2 on X on the random pattern at 500): it
+                // starts past it.
+                // The outputs are half the ring's window behind the plan, and the mean
+                // reaches `h` either side of them.
+                let wait = self.ramp.window() as u32 / 2 + h;
+                self.follow_wait = Some((per_dv, wait));
+            } else {
+                self.follow.start(per_dv);
+                self.ramp.keep_slow();
+            }
         }
     }
 
