@@ -41,6 +41,7 @@ pub mod state;
 pub mod step_gen;
 pub mod step_ramps;
 pub mod switch_window;
+pub mod turn_slow;
 pub mod vol;
 pub mod width_blend;
 pub mod wire;

@@ -30,8 +30,10 @@ pub const MEAN: usize = 8;
 pub const STEPS: usize = 9;
 /// Plungers, valves and the tick's report.
 pub const REPORT: usize = 10;
+/// The head's slowing at tight fillets (`Executor::slow_at_turns`).
+pub const TURNS: usize = 11;
 /// Sections.
-pub const N: usize = 11;
+pub const N: usize = 12;
 /// Each section's name, by its index.
 pub const NAMES: [&str; N] = [
     "flow model step",
@@ -45,6 +47,7 @@ pub const NAMES: [&str; N] = [
     "window mean",
     "step outputs",
     "plungers, valves, report",
+    "slowing at tight fillets",
 ];
 
 #[allow(clippy::declare_interior_mutable_const)]

@@ -325,13 +325,15 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn follow_path(&mut self, stopping: bool, q: R) -> Result<bool, Fault> {
         let q_stop = self.machine.q_stop;
         let shut = self.model.commanded() == 0;
+        // Where the head is: the volume clock less what it lags after a tight fillet.
+        let at = self.head - self.lag;
         for _ in 0..PLAN_CAPACITY {
             let Some(Item::Seg(seg)) = self.plan.front() else {
                 // Printing with no segment queued: the feeder fell behind.
                 return Err(Fault::Underrun);
             };
             self.last_index = seg.index;
-            let past = self.head >= seg.u_end;
+            let past = at >= seg.u_end;
             // A tail that ran out short of the end: the rest is within the stop threshold
             // (short of an earlier segment: `tail_ran_out`).
             let tail_done = seg.last && stopping && q <= q_stop && shut;
@@ -350,7 +352,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
                 continue;
             }
-            let off = (self.head - seg.u_start).mm3::<R>() * seg.inv_s;
+            let off = (at - seg.u_start).mm3::<R>() * seg.inv_s;
             if off <= seg.len {
                 self.head_pos[0] = seg.start[0] + seg.dir[0] * off;
                 self.head_pos[1] = seg.start[1] + seg.dir[1] * off;
@@ -391,9 +393,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.model.command(0);
             self.want = None;
         }
-        // Volume past the end stays where the head stops.
-        if self.head > seg.u_end {
-            self.lost += self.head - seg.u_end;
+        // Volume past the end stays where the head stops (a lag still carried was laid
+        // on the bead).
+        let at = self.head - self.lag;
+        self.lag = Vol::ZERO;
+        self.follow_wait = None;
+        if at > seg.u_end {
+            self.lost += at - seg.u_end;
         }
         // The head stays where the paste ran out: a tail that delivered less than the
         // bead's rest leaves it a little short, rather than jumping the gap dry. The plan

@@ -31,6 +31,7 @@ mod plan;
 mod ramp;
 mod report;
 mod sizing;
+mod turns;
 mod valves;
 use drive::settle_limit;
 pub use park::{ParkStage, RefillError};
@@ -179,6 +180,19 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
     /// 600 B: last, so that the fields the tick reads keep their short offsets.
     follow: crate::flow_follow::FlowFollow,
+    /// How far (as volume) the head lags the volume clock after slowing for a tight
+    /// fillet (`crate::turn_slow`, `turns`): `follow_path` places it there.
+    lag: Vol,
+    turn_slow: crate::turn_slow::TurnSlow<R>,
+    /// A decision's follower start held until the outputs leave the tight fillet the
+    /// head is slowed round (`valves::size_ramp`): its volume-to-position factor, and
+    /// the cycles still to wait once the plan has left the fillet.
+    follow_wait: Option<(f32, u32)>,
+    /// Half the ring mean's window the last decision headed for, frames (the machine's
+    /// window's before any), and the cap (squared, mm^2/s^2) worked out for the fillet
+    /// starting at a plan volume with that half (`turns`).
+    mean_half: u32,
+    cap_cache: ((Vol, u32), R),
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -234,6 +248,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
             sizing: false,
             sizer: None,
             follow: crate::flow_follow::FlowFollow::new(),
+            lag: Vol::ZERO,
+            turn_slow: crate::turn_slow::TurnSlow::off(),
+            follow_wait: None,
+            mean_half: 0,
+            cap_cache: ((Vol::ZERO, 0), R::ZERO),
         }
     }
 
@@ -284,6 +303,17 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 .inlets
                 .iter()
                 .all(|i| i.syringe.is_none() && i.rise_s > R::ZERO && i.decay_s > R::ZERO);
+        // The ramps' share of the X/Y limit, on the machines whose windows are sized per
+        // decision (narrowed for a switch, they leave tight fillets to `turn_slow`).
+        let a = if self.sizing {
+            self.machine.motion.max_accel[0].min(self.machine.motion.max_accel[1])
+                * R::of(crate::config::RAMP_SHARE)
+        } else {
+            R::ZERO
+        };
+        self.turn_slow.reset(a);
+        self.mean_half = self.machine.ramp_cycles / 2;
+        self.cap_cache = ((Vol(-1), 0), R::ZERO);
         self.hold_ramp();
     }
 
@@ -298,6 +328,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.ended = false;
         self.phase = Phase::Idle;
         self.head = Vol::ZERO;
+        self.lag = Vol::ZERO;
+        self.follow_wait = None;
+        self.cap_cache = ((Vol(-1), 0), R::ZERO);
         self.want = None;
         self.switch.reset();
         self.stop.reset();

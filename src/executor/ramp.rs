@@ -118,6 +118,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 self.ramp.keep_slow();
             }
         }
+        // The soft machines' slowing at tight fillets, for the next cycle's position
+        // (`turns`): here, on the narrowed ring's path, the others pay nothing for it.
+        probe!(TURNS, self.slow_at_turns());
         if self.follow.active() {
             probe!(FOLLOWER, {
                 self.follow.push(f.dv);

@@ -57,6 +57,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// turns ahead a few at a time after it, so that the decision's cycle, which the
     /// valve command already makes the dearest, carries none of it.
     pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
+        self.follow_wait = None;
         self.sizer = Some(Pending::Start {
             opening,
             closing: self.model.commanded(),
@@ -104,8 +105,20 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     // Sized for the turns and rounding only: the follower takes the
                     // flow's change. The bead's speed per volume: position units (1e-4 mm)
                     // per volume unit (1e-10 mm^3, `Vol`), through the bead's own section.
-                    self.follow.start(w.inv_s.to_f32() * 1.0e-6);
-                    self.ramp.keep_slow();
+                    let per_dv = w.inv_s.to_f32() * 1.0e-6;
+                    if self.turn_slow.turning() {
+                        // The head is off the flow's speed round a tight fillet (`turns`):
+                        // the follower, which aims the head at the flow's speed, would
+                        // undo that inside the turn (565 mm/s^2 on X on the random
+                        // pattern at 500): it starts past it. The outputs are half the
+                        // ring's window behind the plan, and the mean reaches the half
+                        // window it heads for either side of them.
+                        let wait = self.ramp.window() as u32 / 2 + self.ramp.goal();
+                        self.follow_wait = Some((per_dv, wait));
+                    } else {
+                        self.follow.start(per_dv);
+                        self.ramp.keep_slow();
+                    }
                 }
                 (None, false)
             }
@@ -127,6 +140,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         };
         if let Some(g) = goal {
             self.ramp.set_goal(g);
+            // The slowing at tight fillets (`turns`) sizes its cap by the decision's
+            // whole window, as the walk ends: set at each step of the walk, it took the
+            // 0.6 mm stripes' row ends from 21.8 to 27.3 % off over 0.2 mm.
+            if done {
+                self.mean_half = g;
+            }
         }
         if done {
             self.sizer = None;
@@ -148,7 +167,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 },
             );
         if self.sizer.is_none() {
-            self.ramp.set_goal(self.machine.ramp_cycles / 2);
+            self.mean_half = self.machine.ramp_cycles / 2;
+            self.ramp.set_goal(self.mean_half);
         }
     }
 }
