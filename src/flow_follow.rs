@@ -17,13 +17,13 @@
 //! width blend's offset (`crate::width_blend`). Where to use it is `crate::switch_window`'s
 //! call: not near a turn tighter than the limit allows at the flow's speed.
 
+use crate::fast::{max, min};
+
 /// Frames a block of the envelopes takes: each entry is the extreme of `BLOCK` frames
 /// (exact for them, referred to the block's first frame), so that the envelopes reach
 /// the outputs' half window of the largest ring in 512 B. Whole frames took 4 KiB, which
 /// the firmware built on `control_state`'s stack frame (7 KiB, over the 4 KiB gate).
 const BLOCK: i32 = 8;
-
-use crate::fast::{max, min};
 
 /// Blocks an envelope holds: the outputs' half window of the largest ring.
 const QUEUE: usize = crate::capacity::RAMP_CAPACITY / 2 / BLOCK as usize;

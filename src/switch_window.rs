@@ -11,22 +11,10 @@ use crate::config::{Machine, RAMP_SHARE};
 use crate::flow_model::FlowModel;
 use crate::real::Real;
 
-/// Whether switching from the inlets of `closing` to inlet `opening` (bit masks, one bit
-/// for the opening) moves the head's speed within the ramps' share of the X/Y limit with
-/// no window. Newtonian contents and pneumatic lines with first-order pressure changes
-/// of equal dead times only; anything else (a step of pressure, a power-law paste, a
-/// syringe) is `false`, the machine's window.
-///
-/// The closing line's flow (the channel's now, `v_c`) decays as `exp(-t / tau_d)`, the
-/// opening one's (its supply through the contents now, `v_o`) rises as
-/// `1 - exp(-t / tau_r)`; the head's acceleration is
-/// `a(t) = v_o / tau_r exp(-t / tau_r) - v_c / tau_d exp(-t / tau_d)`, largest in size at
-/// the start or where its derivative vanishes. The channel's contents change as the new
-/// paste enters it, over the channel's transit, far slower.
-/// Half the window (frames) the head's mean needs for the valves going from the inlets of
-/// `closing` (bit mask) to `opening` (none: closing only), or `None` for the machine's.
-/// Newtonian contents and one closing, one opening pneumatic line of first-order
-/// pressure changes with equal dead times only.
+/// A decision's window in the making: half the window (frames) the head's mean needs for
+/// the valves going from the inlets of `closing` (bit mask) to `opening` (none: closing
+/// only), or `None` for the machine's. Newtonian contents and one closing, one opening
+/// pneumatic line of first-order pressure changes with equal dead times only.
 ///
 /// After the dead time the closing line's pressure decays as `exp(-t / tau_d)` and the
 /// opening one's rises as `1 - exp(-t / tau_r)`; the junction follows the higher, so the
@@ -35,39 +23,21 @@ use crate::real::Real;
 /// speed now and `v_o` the opening line's supply through the contents now. The window
 /// is the longer of the decay's from its start and the rise's from where it overtakes
 /// the decay. The contents change as the new paste enters the channel, over its
-/// transit, far slower. Once per decision: three Newton steps and two more per window
-/// (an `expf` or two each), never per tick.
+/// transit, far slower.
 ///
-/// The window is never shorter than the bead's tight turns ahead need (`turns`, nearest
-/// first, `turn_window`), nor than a millisecond (`min_half`): a window narrowed for the
-/// flow shows the head every fillet, and every rounding of the plan, that the machine's
-/// long window smoothed. Of the two, the millisecond took the logo at 500 mm/s^2 from
-/// 610 to 519 / 534 mm/s^2 on X / Y; sized at the flushed speed, no turn of the four
-/// designs measured (chessboard, random pattern, logo, fine features) widened a window.
-pub fn switch_half<R: Real, const N: usize>(
-    m: &Machine<R, N>,
-    model: &FlowModel<R, N>,
-    closing: u32,
-    opening: Option<u8>,
-    turns: impl Iterator<Item = Turn> + Clone,
-) -> Option<(u32, bool)> {
-    let mut s = switch_start(m, model, closing, opening)?;
-    if s.checking() && !s.check(turns.clone()) {
-        return None;
-    }
-    while !s.step() {}
-    for t in turns.take(TURNS_AHEAD) {
-        s.walk.feed(t);
-    }
-    Some((s.half(m)?, s.follow))
-}
-
-/// A decision's window in the making (`switch_half`), a step at a time so that the
-/// executor can spread it over the cycles after the decision (the whole of it, with the
-/// walk over the turns ahead, was up to 5 000 instructions in the decision's cycle on the
-/// soft machine): `switch_start` checks the contents, `check` whether the follower takes
-/// the change, `step` sizes it (a few `expf` a step), and the caller feeds `walk` the
-/// turns ahead.
+/// The window is never shorter than the bead's tight turns ahead need (`TurnWalk`), nor
+/// than a millisecond (`min_half`): a window narrowed for the flow shows the head every
+/// fillet, and every rounding of the plan, that the machine's long window smoothed. Of
+/// the two, the millisecond took the logo at 500 mm/s^2 from 610 to 519 / 534 mm/s^2 on
+/// X / Y; sized at the flushed speed, no turn of the four designs measured (chessboard,
+/// random pattern, logo, fine features) widened a window.
+///
+/// A step at a time, so that the executor spreads it over the cycles after the decision
+/// (`crate::executor`'s sizing; the whole of it, with the walk over the turns ahead, was
+/// up to 5 000 instructions in the decision's cycle on the soft machine): `switch_start`
+/// checks the contents, `check` whether the follower takes the change, `step` sizes it
+/// (three steps of an `expf` or a few), and the caller feeds `walk` the turns ahead and
+/// reads `half`.
 #[derive(Clone, Copy, Debug)]
 pub struct Sizing {
     /// The window the flow's change needs so far, s.
@@ -259,7 +229,7 @@ impl Sizing {
     }
 }
 
-/// `switch_half`'s first step: whether the contents are sized here at all (`None`: the
+/// A decision's `Sizing` begun: whether the contents are sized here at all (`None`: the
 /// machine's window), and the flow's change they make.
 pub fn switch_start<R: Real, const N: usize>(
     m: &Machine<R, N>,

@@ -7,8 +7,9 @@
 //!
 //! This file holds the state, its set-up, the public API and `tick`; the rest is cut by
 //! what it does: `plan` (commands into plan items), `drive` (one cycle through the
-//! phases, and the step outputs), `valves` (switch and stop decisions), `ramp` (the
-//! speed-ramp window's side), `report`, `pause` and `park`.
+//! phases, and the step outputs), `valves` (switch and stop decisions), `sizing` (a
+//! decision's ramp window, over the cycles after it), `ramp` (the speed-ramp window's
+//! side), `turns` (slowing at tight fillets), `report`, `pause` and `park`.
 
 use crate::command::{Command, CommandError};
 use crate::config::{Config, ConfigError, Machine};

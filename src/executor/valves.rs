@@ -1,6 +1,6 @@
 //! Valve decisions while printing: the switch and stop predictions (`Tracker`), the
-//! cursor that runs ahead of the head by the lead window, the ramp window sized at each
-//! decision, and the valve outputs. Stops at the decision: the flow model carries it out.
+//! cursor that runs ahead of the head by the lead window, and the valve outputs. Stops at
+//! the decision: the flow model carries it out, and `sizing` sizes its ramp window.
 
 use super::{cycles32, Executor, Phase, PREDICT_BUDGET, PREDICT_INTERVAL};
 use crate::config::Machine;
