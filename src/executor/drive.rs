@@ -186,7 +186,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
             }
         }
         #[cfg(feature = "probe")]
-        #[cfg(feature = "probe")]
         crate::probe::add(crate::probe::PHASES, start);
         if self.pause.requested && matches!(self.phase, Phase::Print { stopping: false }) {
             self.pause_check();

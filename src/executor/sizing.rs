@@ -2,10 +2,9 @@
 //! after the decision's: the contents in the next, whether the follower takes the flow's
 //! change in the one after (several pastes in the channel), the change itself in three
 //! more (an `expf` or a few each), then the bead's turns ahead, `WALK_ITEMS` plan items a
-//! cycle. Done in the decision's cycle, the whole was up to 5 000
-//! instructions on the soft machine's dearest tick (bench-m4's `soft`); a step now is at
-//! most about 700. Stops at the window's size: the ramp ring moves to it
-//! (`Ramp::set_goal`).
+//! cycle. Done in the decision's cycle, the whole was up to 5 000 instructions on the soft
+//! machine's dearest tick (bench-m4's `soft`); a step now is at most about 650. Stops at
+//! the window's size: the ramp ring moves to it (`Ramp::set_goal`).
 
 use super::plan::{Item, Seg};
 use super::Executor;
