@@ -29,6 +29,7 @@ mod fast;
 pub mod flow_follow;
 pub mod flow_model;
 mod fmt;
+pub mod follow_trail;
 pub mod job;
 pub mod motion;
 pub mod outputs;
@@ -44,6 +45,7 @@ pub mod switch_window;
 pub mod turn_slow;
 pub mod vol;
 pub mod width_blend;
+pub mod window_sums;
 pub mod wire;
 
 pub use capacity::DEFAULT_INLETS;

@@ -202,7 +202,8 @@ impl<const N: usize> Ramp<N> {
 
     /// `push` while `narrowing`: the window's mean moves a frame, and its width a frame
     /// towards the goal.
-    pub fn push_narrow(&mut self, frame: Frame<N>, steps: &mut StepRamps) {
+    /// Returns the half window before the push (`crate::window_sums` follows the width).
+    pub fn push_narrow(&mut self, frame: Frame<N>, steps: &mut StepRamps) -> u32 {
         steps.tick();
         let big = self.window as usize / 2;
         let h = self.half as usize;
@@ -243,6 +244,7 @@ impl<const N: usize> Ramp<N> {
         // at 500 mm/s^2: a 1.3 mm/s step met at 977 mm/s^2): it takes its own window,
         // whatever the mean's (`StepRamps::offset`).
         self.find_step(steps);
+        h as u32
     }
 
     /// The mean of the frames (without the blend's offset), X and Y, units from the
@@ -264,6 +266,17 @@ impl<const N: usize> Ramp<N> {
     /// Window length, cycles.
     pub fn window(&self) -> usize {
         self.window as usize
+    }
+
+    /// The frame `back` frames before the newest (0: the newest; the ring's capacity
+    /// wraps).
+    pub fn back(&self, back: usize) -> &Frame<N> {
+        self.at(back)
+    }
+
+    /// Half the window the mean is over now, frames.
+    pub fn half(&self) -> u32 {
+        self.half
     }
 
     fn at(&self, back: usize) -> &Frame<N> {

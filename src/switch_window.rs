@@ -35,7 +35,7 @@ use crate::real::Real;
 /// A step at a time, so that the executor spreads it over the cycles after the decision
 /// (`crate::executor`'s sizing; the whole of it, with the walk over the turns ahead, was
 /// up to 5 000 instructions in the decision's cycle on the soft machine): `switch_start`
-/// checks the contents, `check` whether the follower takes the change, `step` sizes it
+/// checks the contents, `begin_follow` hands a mixed channel's change to the follower, `step` sizes it
 /// (three steps of an `expf` or a few), and the caller feeds `walk` the turns ahead and
 /// reads `half`.
 #[derive(Clone, Copy, Debug)]
@@ -65,14 +65,7 @@ struct FlowChange {
     settle: f32,
     v_turn: f32,
     t: f32,
-    /// The follower's check (`Sizing::check`): how far the flow's change reaches (mm),
-    /// the speed a turn is met at, the whole X/Y limit, and the limit the box keeps if the
-    /// follower does not take the change (none: too little, the machine's window).
-    reach: f32,
-    v_check: f32,
-    whole: f32,
-    boxed: Option<f32>,
-    /// 0: the follower's check to do; 1 to 3: the flow's window (`Sizing::step`); then
+    /// 0: the follower to start; 1 to 3: the flow's window (`Sizing::step`); then
     /// sized.
     stage: u8,
 }
@@ -83,48 +76,22 @@ impl Sizing {
         self.flow.stage > 3
     }
 
-    /// Whether the follower's check (`check`) is still to do: several pastes in the
-    /// channel.
+    /// Whether the follower is still to start: several pastes in the channel.
     pub fn checking(&self) -> bool {
         self.flow.stage == 0
     }
 
-    /// The follower's check over the bead's `turns` ahead (nearest first): whether it
-    /// takes the flow's change, or the box (a window sized for the change) does; `false`
-    /// if the box has too little of the limit left (the machine's window then).
-    ///
-    /// Several pastes in the channel: the flow's change is the follower's
-    /// (`crate::flow_follow`), a head speed slewed within the limit, and the window is
-    /// sized for the turns and the plan's rounding only. A box sized for the change
-    /// instead left the fine features 8.3 % off over 0.2 mm at 500 mm/s^2; the follower,
-    /// 2.1 %. Not where a fillet tighter than the limit allows at the flow's speed lies
-    /// within the change's reach: the follower's change of speed on top of the fillet's
-    /// turn took the 0.6 mm stripes' row ends to 711 mm/s^2 at 500.
-    pub fn check(&mut self, turns: impl Iterator<Item = Turn>) -> bool {
-        let f = &mut self.flow;
-        let (reach, v, whole) = (f.reach, f.v_check, f.whole);
-        // The turns come in path order: past the reach none counts (a decision's cost, on
-        // the soft machine's worst tick).
-        self.follow = !turns
-            .take(TURNS_AHEAD)
-            .take_while(|t| t.at < reach)
-            .any(|t| {
-                let (x, y) = (t.to[0] - t.from[0], t.to[1] - t.from[1]);
-                // A turn of more than about 6 degrees (segments split at a boundary run on
-                // straight, with no fillet).
-                t.at < reach && t.radius * whole < v * v && x * x + y * y > 0.01
-            });
-        f.stage = 1;
-        if self.follow {
-            return true;
-        }
-        match f.boxed {
-            Some(l) => {
-                self.limit = l;
-                true
-            }
-            None => false,
-        }
+    /// The follower (`crate::flow_follow`) takes the flow's change of a channel of
+    /// several pastes, a head speed slewed within the limit, and the window is sized for
+    /// the turns and the plan's rounding only. A box sized for the change instead left
+    /// the fine features 8.3 % off over 0.2 mm at 500 mm/s^2; the follower, 2.1 %. Near a
+    /// fillet tighter than the limit allows at the flow's speed too, since the follower
+    /// plans its speed by the mean's own path ahead and keeps a lagging head on that path
+    /// (`crate::follow_trail`): barred there, a box sized from the contents left the
+    /// random pattern 8.9 % off over 0.2 mm of straight bead at 500 (3.8 % now).
+    pub fn begin_follow(&mut self) {
+        self.follow = true;
+        self.flow.stage = 1;
     }
 
     /// The next step of the flow's window; `true` once it is sized and `walk` takes the
@@ -219,10 +186,6 @@ impl Sizing {
                 settle: 0.0,
                 v_turn: 0.0,
                 t: 0.0,
-                reach: 0.0,
-                v_check: 0.0,
-                whole: 0.0,
-                boxed: None,
                 stage: 4,
             },
         }
@@ -280,27 +243,8 @@ pub fn switch_start<R: Real, const N: usize>(
     });
     let v = v_o.max(v_c);
     let flush = flushed(model, open, s);
-    // The follower's check, with several pastes in the channel (`Sizing::check`).
+    // Several pastes in the channel: the follower's (`Sizing::begin_follow`).
     let mixed = model.channel().len() > 1;
-    let reach = v * (delay + tau_r.max(tau_d));
-    // The speed the head meets a turn at: the flow's now, or the opening paste's through
-    // a channel full of it (before the flush it may pass faster, briefly).
-    let v_check = v_c.max(flush.map_or(0.0, |f| f.min(v)));
-    // The box, if the follower does not take the change: a quarter of the contents'
-    // motion bound left to them (their resistance changes as they move: the head's speed
-    // by at most `v_flow_max` over the channel's volume of bead, at up to `v_flow_max`;
-    // `step_ramp_accel`). Measured at 500 mm/s^2 on the fine features (section off over
-    // 0.2 mm, X / Y): no room, 5.5 %, 519 / 511; half, 12.4 %, 443 / 488; a quarter,
-    // 8.3 %, 458 / 488.
-    let along = m.v_channel.mm3::<f32>() / s;
-    let vf = m.v_flow_max.to_f32();
-    let moving = if along > 0.0 {
-        0.25 * vf * vf / along
-    } else {
-        f32::INFINITY
-    };
-    let left = limit - moving;
-    let boxed = (!left.is_nan() && left > 0.25 * limit).then_some(left);
     // Past the channel's flush the head moves at the opening paste's own speed through a
     // channel full of it (a bead's end: the closing speed, at most). Before the flush it
     // may be faster (paste B opening into paste A), but sizing the turns for that took
@@ -325,10 +269,6 @@ pub fn switch_start<R: Real, const N: usize>(
             settle,
             v_turn,
             t: 0.0,
-            reach,
-            v_check,
-            whole,
-            boxed,
             stage: if mixed { 0 } else { 1 },
         },
     })

@@ -51,8 +51,6 @@ pub struct TurnSlow<R> {
     u: R,
     /// The ramps' acceleration (the X/Y limit's share), mm/s^2; 0: never on.
     a: R,
-    /// Inside a fillet, off the plan's speed or bounded, this cycle.
-    turning: bool,
     /// The head's speed's upper envelope, falling at half the speed's change a fillet
     /// allows (mm/s): what a lead holds the head's speed to within the mean's box.
     peak: R,
@@ -64,7 +62,6 @@ impl<R: Real> TurnSlow<R> {
         TurnSlow {
             u: R::ZERO,
             a: R::ZERO,
-            turning: false,
             peak: R::ZERO,
         }
     }
@@ -72,7 +69,6 @@ impl<R: Real> TurnSlow<R> {
     /// Idle, for ramps of acceleration `a` mm/s^2 (not finite or not positive: off).
     pub fn reset(&mut self, a: R) {
         self.u = R::ZERO;
-        self.turning = false;
         self.a = if a.is_finite() && a > R::ZERO {
             a
         } else {
@@ -141,7 +137,6 @@ impl<R: Real> TurnSlow<R> {
     /// Keeps the plan's speed `v`: nothing carried, no fillet.
     pub fn keep(&mut self, v: R) {
         self.u = v;
-        self.turning = false;
     }
 
     /// Whether the head need not leave the plan's speed `v` (mm/s): no lag carried, and
@@ -154,7 +149,6 @@ impl<R: Real> TurnSlow<R> {
                 .is_none_or(|r| v * v <= R::of(0.25) * self.turn_accel() * r);
         if free {
             self.u = v;
-            self.turning = false;
         }
         free
     }
@@ -219,13 +213,7 @@ impl<R: Real> TurnSlow<R> {
         }
         u = u.max(R::ZERO);
         self.u = u;
-        self.turning = ahead.radius.is_some();
         u
-    }
-
-    /// Whether the head was inside a fillet, off the plan's speed or bounded, last cycle.
-    pub fn turning(&self) -> bool {
-        self.turning
     }
 }
 

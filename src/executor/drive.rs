@@ -396,7 +396,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // on the bead).
         let at = self.head - self.lag;
         self.lag = Vol::ZERO;
-        self.follow_wait = None;
         if at > seg.u_end {
             self.lost += at - seg.u_end;
         }

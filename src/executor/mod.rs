@@ -178,22 +178,22 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     sizing: bool,
     /// A valve decision's sizing of the ramp window, under way (`sizing`).
     sizer: Option<sizing::Pending<R>>,
-    /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
-    /// 600 B: last, so that the fields the tick reads keep their short offsets.
-    follow: crate::flow_follow::FlowFollow,
     /// How far (as volume) the head lags the volume clock after slowing for a tight
     /// fillet (`crate::turn_slow`, `turns`): `follow_path` places it there.
     lag: Vol,
+    /// The plan's moves over the ring's windows while the flow's follower runs
+    /// (`crate::window_sums`).
+    sums: crate::window_sums::WindowSums,
     turn_slow: crate::turn_slow::TurnSlow<R>,
-    /// A decision's follower start held until the outputs leave the tight fillet the
-    /// head is slowed round (`valves::size_ramp`): its volume-to-position factor, and
-    /// the cycles still to wait once the plan has left the fillet.
-    follow_wait: Option<(f32, u32)>,
     /// Half the ring mean's window the last decision headed for, frames (the machine's
     /// window's before any), and the cap (squared, mm^2/s^2) worked out for the fillet
     /// starting at a plan volume with that half (`turns`).
     mean_half: u32,
     cap_cache: ((Vol, u32), R),
+    /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
+    /// 3 KiB: last, so that the fields the tick reads keep their short offsets (the
+    /// slowing's lag behind it cost every machine's tick an instruction or more).
+    follow: crate::flow_follow::FlowFollow,
 }
 
 impl<R: Real, const N: usize> Executor<R, N> {
@@ -250,8 +250,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             sizer: None,
             follow: crate::flow_follow::FlowFollow::new(),
             lag: Vol::ZERO,
+            sums: crate::window_sums::WindowSums::new(),
             turn_slow: crate::turn_slow::TurnSlow::off(),
-            follow_wait: None,
             mean_half: 0,
             cap_cache: ((Vol::ZERO, 0), R::ZERO),
         }
@@ -330,7 +330,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         self.phase = Phase::Idle;
         self.head = Vol::ZERO;
         self.lag = Vol::ZERO;
-        self.follow_wait = None;
         self.cap_cache = ((Vol(-1), 0), R::ZERO);
         self.want = None;
         self.switch.reset();

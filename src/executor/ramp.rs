@@ -15,6 +15,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// that frame (after a job begins, a config loads, or the outputs went safe).
     pub(super) fn hold_ramp(&mut self) {
         self.sizer = None;
+        self.sums.stop();
         if self.ramped {
             let f = self.frame();
             let m = &self.machine;
@@ -109,8 +110,16 @@ impl<R: Real, const N: usize> Executor<R, N> {
     fn push_frame_narrow(&mut self, dv: Vol) {
         let mut f = probe!(FRAME, self.frame());
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
-        probe!(RING, self.ramp.push_narrow(f, &mut self.step_ramps));
+        let h0 = probe!(RING, self.ramp.push_narrow(f, &mut self.step_ramps));
+        // The follower's window sums (`crate::window_sums`) count while a decision is
+        // sized or the follower runs: inside those branches, so that the usual narrowed
+        // tick pays nothing for them (6 instructions on the instantaneous valves' worst).
+        let mut counted = false;
         if self.sizer.is_some() {
+            if self.sums.on() {
+                self.sums.pushed(&self.ramp, h0);
+                counted = true;
+            }
             // A valve decision's sizing, a step a frame (`sizing_step`), on the slow path
             // only: the usual tick pays nothing for it.
             probe!(SIZING, self.sizing_step());
@@ -123,7 +132,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
         probe!(TURNS, self.slow_at_turns());
         if self.follow.active() {
             probe!(FOLLOWER, {
-                self.follow.push(f.dv);
+                if !counted && self.sums.on() {
+                    self.sums.pushed(&self.ramp, h0);
+                }
+                let (sums, ramp) = (&self.sums, &self.ramp);
+                let lead = ramp.half() + 1;
+                let step = ramp.back(lead as usize).dv;
+                self.follow.push(lead, step, || sums.look(ramp));
                 self.follow_flow();
                 self.ramp.keep_slow();
             });
@@ -137,8 +152,15 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let c = *self.ramp.current();
         let printing = matches!(c.state, RunState::Printing | RunState::Settling);
         let (base, off) = self.ramp.mean_parts(&mut self.step_ramps);
-        let d = probe!(FOLLOW, self.follow.follow(base, off, c.dv, printing));
+        let d = probe!(
+            FOLLOW,
+            self.follow
+                .follow(base, off, c.dv, printing, self.sums.mean(&self.ramp))
+        );
         self.ramp.bend(d, &mut self.step_ramps);
+        if !self.follow.active() {
+            self.sums.stop();
+        }
     }
 }
 

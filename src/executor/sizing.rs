@@ -1,6 +1,6 @@
 //! The ramp window sized at each valve decision (`crate::switch_window`), over the cycles
-//! after the decision's: the contents in the next, whether the follower takes the flow's
-//! change in the one after (several pastes in the channel), the change itself in three
+//! after the decision's: the contents in the next, the follower's start in the ones after
+//! (several pastes in the channel; once its window sums are whole), the change in three
 //! more (an `expf` or a few each), then the bead's turns ahead, `WALK_ITEMS` plan items a
 //! cycle. Done in the decision's cycle, the whole was up to 5 000 instructions on the soft
 //! machine's dearest tick (bench-m4's `soft`); a step now is at most about 650. Stops at
@@ -56,7 +56,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// turns ahead a few at a time after it, so that the decision's cycle, which the
     /// valve command already makes the dearest, carries none of it.
     pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
-        self.follow_wait = None;
         self.sizer = Some(Pending::Start {
             opening,
             closing: self.model.commanded(),
@@ -92,35 +91,24 @@ impl<R: Real, const N: usize> Executor<R, N> {
         };
         let machine_half = self.machine.ramp_cycles / 2;
         let (goal, done) = if w.sizing.checking() {
-            // The follower's check looks no further than the lead window: the flow's
-            // change reaches no further (its dead time and eight time constants at top
-            // speed).
-            let until = w.head + self.window;
-            let turns = turns_from(self.plan.as_slices(), w.head, w.inv_s, until);
-            if !w.sizing.check(turns) {
-                (Some(machine_half), true)
-            } else {
-                if w.sizing.follow {
-                    // Sized for the turns and rounding only: the follower takes the
-                    // flow's change. The bead's speed per volume: position units (1e-4 mm)
-                    // per volume unit (1e-10 mm^3, `Vol`), through the bead's own section.
-                    let per_dv = w.inv_s.to_f32() * 1.0e-6;
-                    if self.turn_slow.turning() {
-                        // The head is off the flow's speed round a tight fillet (`turns`):
-                        // the follower, which aims the head at the flow's speed, would
-                        // undo that inside the turn (565 mm/s^2 on X on the random
-                        // pattern at 500): it starts past it. The outputs are half the
-                        // ring's window behind the plan, and the mean reaches the half
-                        // window it heads for either side of them.
-                        let wait = self.ramp.window() as u32 / 2 + self.ramp.goal();
-                        self.follow_wait = Some((per_dv, wait));
-                    } else {
-                        self.follow.start(per_dv);
-                        self.ramp.keep_slow();
-                    }
+            // The follower takes the flow's change from the frames planned next; the
+            // window is sized for the turns and rounding only. The bead's speed per
+            // volume: position units (1e-4 mm) per volume unit (1e-10 mm^3, `Vol`),
+            // through the bead's own section.
+            // It plans by the plan's moves over the ring's windows (`window_sums`): they
+            // are counted from here, a few pushes to fill, and it starts once they are.
+            if !self.follow.active() {
+                if !self.sums.on() {
+                    self.sums.start();
                 }
-                (None, false)
+                if !self.sums.ready(&self.ramp) {
+                    return;
+                }
             }
+            w.sizing.begin_follow();
+            self.follow.start(w.inv_s.to_f32() * 1.0e-6);
+            self.ramp.keep_slow();
+            (None, false)
         } else if !w.sizing.sized() {
             // The cycle that sizes the flow's change walks no turns yet (the rise's step
             // and a walk's items together were the soft machine's dearest tick).
@@ -214,7 +202,8 @@ fn at<'a, R>(slices: (&'a [Item<R>], &'a [Item<R>]), k: usize) -> Option<&'a Seg
 /// The bead's turns from the plan's front whose fillets start before plan volume `until`:
 /// each segment's fillet into the next, to the bead's end. By reference, in one pass: a
 /// segment is 23 words, and copying each twice a turn (as two zipped iterators did) was a
-/// good part of a decision's cost.
+/// good part of a decision's cost. The tests' whole walk, against the one in steps.
+#[cfg(test)]
 fn turns_from<'a, R: Real>(
     slices: (&'a [Item<R>], &'a [Item<R>]),
     head: Vol,

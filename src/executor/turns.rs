@@ -62,7 +62,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         }
         let inv_s = self.inv_s;
         let v = q * inv_s;
-        if inside.is_none() && self.lag == Vol::ZERO && self.follow_wait.is_none() {
+        if inside.is_none() && self.lag == Vol::ZERO {
             self.turn_slow.keep(v);
             return;
         }
@@ -90,17 +90,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
                 self.cap_cache.1
             });
-        }
-        if ahead.radius.is_none() {
-            match self.follow_wait {
-                Some((per_dv, 0)) => {
-                    self.follow_wait = None;
-                    self.follow.start(per_dv);
-                    self.ramp.keep_slow();
-                }
-                Some((per_dv, n)) => self.follow_wait = Some((per_dv, n - 1)),
-                None => {}
-            }
         }
         if self.turn_slow.idle(v, lag, &ahead) {
             return;
