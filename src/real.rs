@@ -81,7 +81,8 @@ pub trait Real:
     /// Nearest i32 (ties away from zero), saturating; NaN gives 0. For values known to
     /// fit (step positions), without `round_i64`'s wide path.
     fn round_i32(self) -> i32;
-    /// The smaller of two (the other if one is NaN).
+    /// The smaller of two: `self` if `o` is NaN, NaN if `self` is (unlike `f32::min` and
+    /// `crate::fast::min`, which give the other for either: a NaN here shows).
     #[inline]
     fn min(self, o: Self) -> Self {
         if o < self {
@@ -90,7 +91,7 @@ pub trait Real:
             self
         }
     }
-    /// The larger of two.
+    /// The larger of two: `self` if `o` is NaN, NaN if `self` is (as `min`).
     #[inline]
     fn max(self, o: Self) -> Self {
         if o > self {
@@ -322,6 +323,19 @@ impl Real for f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `min` and `max` keep `self` against a NaN and show a NaN `self` (their docs).
+    #[test]
+    fn min_and_max_show_a_nan_self() {
+        for (a, b) in [(1.0f32, 2.0f32), (2.0, 1.0), (-0.5, -0.5)] {
+            assert_eq!(Real::min(a, b), a.min(b));
+            assert_eq!(Real::max(a, b), a.max(b));
+        }
+        assert_eq!(Real::min(1.0f32, f32::NAN), 1.0);
+        assert_eq!(Real::max(1.0f64, f64::NAN), 1.0);
+        assert!(Real::min(f32::NAN, 1.0).is_nan());
+        assert!(Real::max(f64::NAN, 1.0).is_nan());
+    }
 
     #[test]
     fn fast_f32_conversions_match_the_exact_ones() {
