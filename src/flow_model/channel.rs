@@ -35,9 +35,11 @@ pub struct Channel<const N: usize> {
     /// Entered volume up to which no slug start reaches the exit or the plate: below it
     /// `advance` only moves volume (kept by `refresh` whenever the slugs change).
     clear_until: Vol,
-    /// Materials entering and at the exit (cached with `clear_until`).
+    /// Materials entering, at the exit and landing (cached with `clear_until`: the
+    /// tick reads them every cycle, and each read of the deque is a split of its ring).
     newest_m: u8,
     exit_m: u8,
+    landing_m: u8,
 }
 
 /// The channel could not take another slug.
@@ -59,6 +61,7 @@ impl<const N: usize> Channel<N> {
             clear_until: Vol::ZERO,
             newest_m: 0,
             exit_m: 0,
+            landing_m: 0,
         }
     }
 
@@ -89,6 +92,7 @@ impl<const N: usize> Channel<N> {
         self.clear_until = Vol::ZERO;
         self.newest_m = material;
         self.exit_m = material;
+        self.landing_m = material;
         self.refresh();
     }
 
@@ -101,8 +105,9 @@ impl<const N: usize> Channel<N> {
             .slug(1)
             .map_or(Vol(i64::MAX), |s| s.start + self.v_transit);
         self.clear_until = exit_at.min(land_at);
-        self.newest_m = self.newest();
-        self.exit_m = self.at_exit();
+        self.newest_m = self.slugs.back().map(|s| s.material).unwrap_or(0);
+        self.exit_m = self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0);
+        self.landing_m = self.slugs.front().map(|s| s.material).unwrap_or(0);
     }
 
     /// The i-th slug from the plate end, in O(1).
@@ -121,16 +126,19 @@ impl<const N: usize> Channel<N> {
         &self.in_channel
     }
     /// Material entering now (the newest slug's).
+    #[inline]
     pub fn newest(&self) -> u8 {
-        self.slugs.back().map(|s| s.material).unwrap_or(0)
+        self.newest_m
     }
     /// Material at the channel exit (nozzle tip).
+    #[inline]
     pub fn at_exit(&self) -> u8 {
-        self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0)
+        self.exit_m
     }
     /// Material landing on the plate now.
+    #[inline]
     pub fn landing(&self) -> u8 {
-        self.slugs.front().map(|s| s.material).unwrap_or(0)
+        self.landing_m
     }
     /// True when an `advance` since `clear_crossed` crossed a slug start at the exit or
     /// the plate.
@@ -158,6 +166,13 @@ impl<const N: usize> Channel<N> {
         self.slugs.is_empty()
     }
 
+    /// True when `dv` more entering moves no slug start past the exit or onto the plate:
+    /// `advance` takes its fast path, and `exit_room` (if any) is more than `dv`.
+    #[inline]
+    pub fn clear_for(&self, dv: Vol) -> bool {
+        self.entered + dv < self.clear_until
+    }
+
     /// Volume that can still pass the channel exit before the material there changes,
     /// or `None` if the exit is inside the newest slug.
     pub fn exit_room(&self) -> Option<Vol> {
@@ -169,23 +184,35 @@ impl<const N: usize> Channel<N> {
     /// nearest first, at most `out.len()`. Returns how many were written.
     pub fn exit_changes<R: crate::real::Real>(&self, out: &mut [(R, u8)]) -> usize {
         let exit = self.entered - self.v_channel;
+        // The ring's two slices, past the exit's slug: one split of the deque (its
+        // iterator's `skip` stepped slug by slug through an out-of-line `nth`).
+        let skip = self.exit_idx + 1;
+        let (a, b) = self.slugs.as_slices();
+        let (a, b) = match a.get(skip..) {
+            Some(rest) => (rest, b),
+            None => (&[][..], b.get(skip - a.len()..).unwrap_or(&[])),
+        };
         let mut n = 0;
-        // One pass of the deque's iterator: indexing it slug by slug costs a split each.
-        for (o, s) in out
-            .iter_mut()
-            .zip(self.slugs.iter().skip(self.exit_idx + 1))
-        {
+        for (o, s) in out.iter_mut().zip(a.iter().chain(b)) {
             *o = ((s.start - exit).mm3(), s.material);
             n += 1;
         }
         n
     }
 
-    /// Starts a new slug if `material` differs from the one entering.
+    /// Starts a new slug if `material` differs from the one entering. Inlined: nearly
+    /// every cycle feeds the material already entering, one compare.
+    #[inline]
     pub fn feed(&mut self, material: u8) -> Result<(), ChannelFull> {
-        if self.newest() == material {
+        if self.newest_m == material {
             return Ok(());
         }
+        self.feed_new(material)
+    }
+
+    /// `feed` of a material other than the one entering: a new slug.
+    #[inline(never)]
+    fn feed_new(&mut self, material: u8) -> Result<(), ChannelFull> {
         self.slugs
             .push_back(Slug {
                 material,
