@@ -226,6 +226,8 @@ impl<const N: usize> Channel<N> {
     /// Moves `dv` of the newest slug's material in at the junction; as much leaves the
     /// channel into the filament and lands on the plate. Returns how many material changes
     /// landed on the plate during this advance.
+    /// Inlined: the fast path is a few instructions, the slow one out of line.
+    #[inline]
     pub fn advance(&mut self, dv: Vol) -> u32 {
         if dv.0 <= 0 {
             return 0;
@@ -245,6 +247,12 @@ impl<const N: usize> Channel<N> {
             self.entered += dv;
             return 0;
         }
+        self.advance_crossing(dv)
+    }
+
+    /// `advance` of `dv > 0` that moves a slug start past the exit or onto the plate.
+    #[inline(never)]
+    fn advance_crossing(&mut self, dv: Vol) -> u32 {
         self.crossed = true;
         let newest = self.newest() as usize;
         if let Some(v) = self.in_channel.get_mut(newest) {
