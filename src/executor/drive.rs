@@ -13,12 +13,20 @@ use crate::state::Fault;
 use crate::vol::Vol;
 
 impl<R: Real, const N: usize> Executor<R, N> {
-    /// Syringe plunger targets, steps.
+    /// Syringe plunger targets, steps. Inlined: every ramped frame asks, and a pneumatic
+    /// machine's answer is a test; the syringes' out of line.
+    #[inline(always)]
     pub(super) fn plunger_targets(&self) -> [i32; N] {
-        let mut t = [0i32; N];
         if !self.machine.syringes {
-            return t;
+            return [0i32; N];
         }
+        self.syringe_targets()
+    }
+
+    /// `plunger_targets` of a syringe machine.
+    #[inline(never)]
+    fn syringe_targets(&self) -> [i32; N] {
+        let mut t = [0i32; N];
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             if let Some(sy) = inlet.syringe {
                 t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
