@@ -66,6 +66,8 @@ pub fn frames_per_unit(a: f32, dt: f32) -> f32 {
 }
 
 /// Converts a position in mm to the ring's unit (saturating far outside any travel).
+/// Inlined: every ramped frame converts its position.
+#[inline(always)]
 pub fn to_units<R: Real>(p: [R; 3]) -> [i32; 3] {
     let k = R::of(UNIT_PER_MM as f64);
     [
