@@ -40,11 +40,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn move_head(
         &mut self,
         target: [R; 3],
-        cycles: u64,
+        cycles: u32,
         out: &mut impl Outputs,
     ) -> Result<(), Fault> {
         self.steps
-            .move_over(target, cycles as u32, out)
+            .move_over(target, cycles, out)
             .map_err(|e| Fault::StepRate {
                 axis: e.axis,
                 steps: e.steps,
@@ -58,13 +58,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn move_plungers(
         &mut self,
         ramped: bool,
-        cycles: u64,
+        cycles: u32,
         out: &mut impl Outputs,
     ) -> Result<(), Fault> {
         if !self.machine.syringes {
             return Ok(());
         }
-        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles as u64;
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             let Some(sy) = inlet.syringe else { continue };
             let target = if ramped {
