@@ -351,12 +351,13 @@ impl<const N: usize> Ramp<N> {
         let w = self.span as i32;
         let unit = R::ONE / R::of(UNIT_PER_MM as f64);
         let inv_w = R::ONE / R::from_u32(self.span);
-        let newest = self.at(0).pos;
-        let mut p = [R::ZERO; 3];
-        for a in 0..3 {
+        let newest = &self.at(0).pos;
+        // Axis by axis in line (as `sum_move`).
+        let axis = |a: usize| {
             let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
-            p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
-        }
+            (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit
+        };
+        let mut p = [axis(0), axis(1), axis(2)];
         if steps.any() {
             let o = steps.offset::<R>(self.newest, self.half);
             p[0] -= o[0] * unit;
