@@ -40,6 +40,8 @@ pub struct Channel<const N: usize> {
     newest_m: u8,
     exit_m: u8,
     landing_m: u8,
+    /// Slugs held (cached with the materials: every report and ramped frame reads it).
+    count: usize,
 }
 
 /// The channel could not take another slug.
@@ -62,6 +64,7 @@ impl<const N: usize> Channel<N> {
             newest_m: 0,
             exit_m: 0,
             landing_m: 0,
+            count: 0,
         }
     }
 
@@ -108,6 +111,7 @@ impl<const N: usize> Channel<N> {
         self.newest_m = self.slugs.back().map(|s| s.material).unwrap_or(0);
         self.exit_m = self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0);
         self.landing_m = self.slugs.front().map(|s| s.material).unwrap_or(0);
+        self.count = self.slugs.len();
     }
 
     /// The i-th slug from the plate end, in O(1).
@@ -158,8 +162,9 @@ impl<const N: usize> Channel<N> {
         self.slugs.iter()
     }
     /// Number of slugs held.
+    #[inline]
     pub fn len(&self) -> usize {
-        self.slugs.len()
+        self.count
     }
     /// Never true: the channel always holds at least one slug.
     pub fn is_empty(&self) -> bool {
