@@ -66,6 +66,8 @@ pub fn frames_per_unit(a: f32, dt: f32) -> f32 {
 }
 
 /// Converts a position in mm to the ring's unit (saturating far outside any travel).
+/// Inlined: every ramped frame converts its position.
+#[inline(always)]
 pub fn to_units<R: Real>(p: [R; 3]) -> [i32; 3] {
     let k = R::of(UNIT_PER_MM as f64);
     [
@@ -209,10 +211,7 @@ impl<const N: usize> Ramp<N> {
         let h = self.half as usize;
         self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
         self.ring[self.newest as usize] = frame;
-        let (enter, leave) = (self.at(big - h).pos, self.at(big + h + 1).pos);
-        for a in 0..3 {
-            self.sum[a] = self.sum[a].wrapping_add(enter[a]).wrapping_sub(leave[a]);
-        }
+        self.sum_move(big - h, big + h + 1);
         if self.goal != self.half {
             let before = self.mean_offset(steps);
             if self.goal > self.half {
@@ -283,16 +282,30 @@ impl<const N: usize> Ramp<N> {
         &self.ring[(self.newest as usize + RAMP_CAPACITY - back) & (RAMP_CAPACITY - 1)]
     }
 
+    /// The sums plus the position of the frame `plus` back and less that of the frame
+    /// `minus` back, axis by axis in line, read in place: a loop of three is not
+    /// unrolled at opt-level "s", and copies of the positions cost a load and a store
+    /// a word.
+    #[inline(always)]
+    fn sum_move(&mut self, plus: usize, minus: usize) {
+        let (p, m) = (&self.at(plus).pos, &self.at(minus).pos);
+        let s = [
+            self.sum[0].wrapping_add(p[0]).wrapping_sub(m[0]),
+            self.sum[1].wrapping_add(p[1]).wrapping_sub(m[1]),
+            self.sum[2].wrapping_add(p[2]).wrapping_sub(m[2]),
+        ];
+        self.sum = s;
+    }
+
     /// Adds the newest planned cycle; the oldest of the window leaves it. Inlined, so that
     /// the caller builds the frame straight into its slot.
     #[inline(always)]
     pub fn push(&mut self, frame: Frame<N>, steps: &mut StepRamps) {
-        let leaving = self.at(self.window as usize - 1).pos;
-        for ((sum, &new), &old) in self.sum.iter_mut().zip(&frame.pos).zip(&leaving) {
-            *sum = sum.wrapping_add(new).wrapping_sub(old);
-        }
         self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
         self.ring[self.newest as usize] = frame;
+        // The frame entering is the newest now; the one leaving, a window back (the
+        // ring holds more than the window, so it is still there).
+        self.sum_move(0, self.window as usize);
         // After the frame is in its slot, so that it is still built there in place.
         steps.tick();
         self.find_step(steps);
@@ -302,7 +315,7 @@ impl<const N: usize> Ramp<N> {
     /// when there is none).
     #[inline(always)]
     fn find_step(&self, steps: &mut StepRamps) {
-        let (p0, p1, p2) = (self.at(0).pos, self.at(1).pos, self.at(2).pos);
+        let (p0, p1, p2) = (&self.at(0).pos, &self.at(1).pos, &self.at(2).pos);
         let d2 = [
             p0[0]
                 .wrapping_sub(p1[0])
@@ -315,7 +328,7 @@ impl<const N: usize> Ramp<N> {
         ];
         if StepRamps::is_step(d2) {
             // Moving before the step and after it: more than rounding either side.
-            let moved = |a: [i32; 3], b: [i32; 3]| {
+            let moved = |a: &[i32; 3], b: &[i32; 3]| {
                 a[0].wrapping_sub(b[0]).wrapping_abs() > 2
                     || a[1].wrapping_sub(b[1]).wrapping_abs() > 2
             };
@@ -351,12 +364,13 @@ impl<const N: usize> Ramp<N> {
         let w = self.span as i32;
         let unit = R::ONE / R::of(UNIT_PER_MM as f64);
         let inv_w = R::ONE / R::from_u32(self.span);
-        let newest = self.at(0).pos;
-        let mut p = [R::ZERO; 3];
-        for a in 0..3 {
+        let newest = &self.at(0).pos;
+        // Axis by axis in line (as `sum_move`).
+        let axis = |a: usize| {
             let off = self.sum[a].wrapping_sub(newest[a].wrapping_mul(w));
-            p[a] = (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit;
-        }
+            (R::from_i64(newest[a] as i64) + R::from_i64(off as i64) * inv_w) * unit
+        };
+        let mut p = [axis(0), axis(1), axis(2)];
         if steps.any() {
             let o = steps.offset::<R>(self.newest, self.half);
             p[0] -= o[0] * unit;

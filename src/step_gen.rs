@@ -117,23 +117,37 @@ impl<R: Real> StepGen<R> {
             (mm[1] * self.steps_per_mm[1]).round_i32() as i64 - self.position[1],
             dz,
         ];
-        for (a, &da) in d.iter().enumerate() {
-            if da.unsigned_abs() > max {
-                return Err(StepRateExceeded {
-                    axis: Axis::ALL[a],
-                    steps: da.unsigned_abs().min(u32::MAX as u64) as u32,
-                    max: max as u32,
-                });
-            }
+        // Axis by axis, not in a loop: the three axes' checks and steps in line (a loop
+        // of three is not unrolled at opt-level "s").
+        if d[0].unsigned_abs() > max || d[1].unsigned_abs() > max || d[2].unsigned_abs() > max {
+            return Err(rate_exceeded(d, max));
         }
-        for (a, &da) in d.iter().enumerate() {
-            if da != 0 {
-                out.step(Axis::ALL[a], da > 0, da.unsigned_abs() as u32);
-                self.position[a] += da;
-            }
-        }
+        self.step_axis(0, d[0], out);
+        self.step_axis(1, d[1], out);
+        self.step_axis(2, d[2], out);
         self.last_z = mm[2];
         Ok(())
+    }
+
+    /// Axis `a`'s `d` steps, if any.
+    #[inline(always)]
+    fn step_axis(&mut self, a: usize, d: i64, out: &mut impl Outputs) {
+        if d != 0 {
+            out.step(Axis::ALL[a], d > 0, d.unsigned_abs() as u32);
+            self.position[a] += d;
+        }
+    }
+}
+
+/// The first axis whose `d` steps exceed `max` (`move_over`'s refusal; out of line).
+#[cold]
+#[inline(never)]
+fn rate_exceeded(d: [i64; 3], max: u64) -> StepRateExceeded {
+    let a = d.iter().position(|x| x.unsigned_abs() > max).unwrap_or(0);
+    StepRateExceeded {
+        axis: Axis::ALL[a],
+        steps: d[a].unsigned_abs().min(u32::MAX as u64) as u32,
+        max: max as u32,
     }
 }
 

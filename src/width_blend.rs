@@ -92,12 +92,8 @@ impl WidthBlend {
             return [0; 2];
         }
         if self.state & RETURNING != 0 {
-            let mut spent = true;
-            for a in 0..2 {
-                self.rate[a] -= self.k1 * self.offset[a] + self.k2 * self.rate[a];
-                self.offset[a] += self.rate[a];
-                spent &= libm::fabsf(self.offset[a]) < SPENT && libm::fabsf(self.rate[a]) < SPENT;
-            }
+            // X then Y, in line (a loop of two is not unrolled at opt-level "s").
+            let spent = self.return_axis(0) & self.return_axis(1);
             if spent {
                 self.offset = [0.0; 2];
                 self.rate = [0.0; 2];
@@ -124,17 +120,28 @@ impl WidthBlend {
         self.bend
     }
 
+    /// One push of axis `a`'s return; whether it is spent.
+    #[inline(always)]
+    fn return_axis(&mut self, a: usize) -> bool {
+        self.rate[a] -= self.k1 * self.offset[a] + self.k2 * self.rate[a];
+        self.offset[a] += self.rate[a];
+        libm::fabsf(self.offset[a]) < SPENT && libm::fabsf(self.rate[a]) < SPENT
+    }
+
     #[inline(always)]
     fn hold(&mut self, span: u32) -> [i32; 2] {
-        let mut change = [0; 2];
-        let held = self.held.iter_mut().zip(self.offset.iter().zip(&self.bend));
-        for (c, (held, (offset, bend))) in change.iter_mut().zip(held) {
-            // `Real::round_i32`: as `roundf` then `as i32`, without the call.
-            let now = crate::real::Real::round_i32((offset + bend) * span as f32);
-            *c = now.wrapping_sub(*held);
-            *held = now;
-        }
-        change
+        let span = span as f32;
+        [self.hold_axis(0, span), self.hold_axis(1, span)]
+    }
+
+    /// Axis `a` of `hold`, in line.
+    #[inline(always)]
+    fn hold_axis(&mut self, a: usize, span: f32) -> i32 {
+        // `Real::round_i32`: as `roundf` then `as i32`, without the call.
+        let now = crate::real::Real::round_i32((self.offset[a] + self.bend[a]) * span);
+        let c = now.wrapping_sub(self.held[a]);
+        self.held[a] = now;
+        c
     }
 }
 

@@ -13,12 +13,20 @@ use crate::state::Fault;
 use crate::vol::Vol;
 
 impl<R: Real, const N: usize> Executor<R, N> {
-    /// Syringe plunger targets, steps.
+    /// Syringe plunger targets, steps. Inlined: every ramped frame asks, and a pneumatic
+    /// machine's answer is a test; the syringes' out of line.
+    #[inline(always)]
     pub(super) fn plunger_targets(&self) -> [i32; N] {
-        let mut t = [0i32; N];
         if !self.machine.syringes {
-            return t;
+            return [0i32; N];
         }
+        self.syringe_targets()
+    }
+
+    /// `plunger_targets` of a syringe machine.
+    #[inline(never)]
+    fn syringe_targets(&self) -> [i32; N] {
+        let mut t = [0i32; N];
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             if let Some(sy) = inlet.syringe {
                 t[i] = plunger_steps(self.plunger_vol[i], sy.steps_per_mm3);
@@ -32,11 +40,11 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn move_head(
         &mut self,
         target: [R; 3],
-        cycles: u64,
+        cycles: u32,
         out: &mut impl Outputs,
     ) -> Result<(), Fault> {
         self.steps
-            .move_over(target, cycles as u32, out)
+            .move_over(target, cycles, out)
             .map_err(|e| Fault::StepRate {
                 axis: e.axis,
                 steps: e.steps,
@@ -50,13 +58,13 @@ impl<R: Real, const N: usize> Executor<R, N> {
     pub(super) fn move_plungers(
         &mut self,
         ramped: bool,
-        cycles: u64,
+        cycles: u32,
         out: &mut impl Outputs,
     ) -> Result<(), Fault> {
         if !self.machine.syringes {
             return Ok(());
         }
-        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles;
+        let max = self.machine.motion.max_steps_per_cycle as u64 * cycles as u64;
         for (i, inlet) in self.machine.inlets.iter().enumerate() {
             let Some(sy) = inlet.syringe else { continue };
             let target = if ramped {

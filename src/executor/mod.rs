@@ -595,6 +595,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.safe_state(f, out);
             return Err(f);
         }
+        // At most `MAX_CATCH_UP` from here: counted in 32 bits (a u64 loop counter and
+        // its compares are two words each on the M4).
+        let cycles = cycles as u32;
         self.last_now = Some(now_us);
         if !self.drivers_on && self.begun {
             out.drivers(true);

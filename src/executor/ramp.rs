@@ -63,7 +63,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     #[inline(never)]
     pub(super) fn ramped_outputs(
         &mut self,
-        cycles: u64,
+        cycles: u32,
         total_dv: Vol,
         out: &mut impl Outputs,
     ) -> Result<Report<R>, Fault> {

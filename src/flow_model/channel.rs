@@ -35,9 +35,13 @@ pub struct Channel<const N: usize> {
     /// Entered volume up to which no slug start reaches the exit or the plate: below it
     /// `advance` only moves volume (kept by `refresh` whenever the slugs change).
     clear_until: Vol,
-    /// Materials entering and at the exit (cached with `clear_until`).
+    /// Materials entering, at the exit and landing (cached with `clear_until`: the
+    /// tick reads them every cycle, and each read of the deque is a split of its ring).
     newest_m: u8,
     exit_m: u8,
+    landing_m: u8,
+    /// Slugs held (cached with the materials: every report and ramped frame reads it).
+    count: usize,
 }
 
 /// The channel could not take another slug.
@@ -59,6 +63,8 @@ impl<const N: usize> Channel<N> {
             clear_until: Vol::ZERO,
             newest_m: 0,
             exit_m: 0,
+            landing_m: 0,
+            count: 0,
         }
     }
 
@@ -89,6 +95,7 @@ impl<const N: usize> Channel<N> {
         self.clear_until = Vol::ZERO;
         self.newest_m = material;
         self.exit_m = material;
+        self.landing_m = material;
         self.refresh();
     }
 
@@ -101,8 +108,10 @@ impl<const N: usize> Channel<N> {
             .slug(1)
             .map_or(Vol(i64::MAX), |s| s.start + self.v_transit);
         self.clear_until = exit_at.min(land_at);
-        self.newest_m = self.newest();
-        self.exit_m = self.at_exit();
+        self.newest_m = self.slugs.back().map(|s| s.material).unwrap_or(0);
+        self.exit_m = self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0);
+        self.landing_m = self.slugs.front().map(|s| s.material).unwrap_or(0);
+        self.count = self.slugs.len();
     }
 
     /// The i-th slug from the plate end, in O(1).
@@ -121,16 +130,19 @@ impl<const N: usize> Channel<N> {
         &self.in_channel
     }
     /// Material entering now (the newest slug's).
+    #[inline]
     pub fn newest(&self) -> u8 {
-        self.slugs.back().map(|s| s.material).unwrap_or(0)
+        self.newest_m
     }
     /// Material at the channel exit (nozzle tip).
+    #[inline]
     pub fn at_exit(&self) -> u8 {
-        self.slug(self.exit_idx).map(|s| s.material).unwrap_or(0)
+        self.exit_m
     }
     /// Material landing on the plate now.
+    #[inline]
     pub fn landing(&self) -> u8 {
-        self.slugs.front().map(|s| s.material).unwrap_or(0)
+        self.landing_m
     }
     /// True when an `advance` since `clear_crossed` crossed a slug start at the exit or
     /// the plate.
@@ -150,12 +162,20 @@ impl<const N: usize> Channel<N> {
         self.slugs.iter()
     }
     /// Number of slugs held.
+    #[inline]
     pub fn len(&self) -> usize {
-        self.slugs.len()
+        self.count
     }
     /// Never true: the channel always holds at least one slug.
     pub fn is_empty(&self) -> bool {
         self.slugs.is_empty()
+    }
+
+    /// True when `dv` more entering moves no slug start past the exit or onto the plate:
+    /// `advance` takes its fast path, and `exit_room` (if any) is more than `dv`.
+    #[inline]
+    pub fn clear_for(&self, dv: Vol) -> bool {
+        self.entered + dv < self.clear_until
     }
 
     /// Volume that can still pass the channel exit before the material there changes,
@@ -169,23 +189,35 @@ impl<const N: usize> Channel<N> {
     /// nearest first, at most `out.len()`. Returns how many were written.
     pub fn exit_changes<R: crate::real::Real>(&self, out: &mut [(R, u8)]) -> usize {
         let exit = self.entered - self.v_channel;
+        // The ring's two slices, past the exit's slug: one split of the deque (its
+        // iterator's `skip` stepped slug by slug through an out-of-line `nth`).
+        let skip = self.exit_idx + 1;
+        let (a, b) = self.slugs.as_slices();
+        let (a, b) = match a.get(skip..) {
+            Some(rest) => (rest, b),
+            None => (&[][..], b.get(skip - a.len()..).unwrap_or(&[])),
+        };
         let mut n = 0;
-        // One pass of the deque's iterator: indexing it slug by slug costs a split each.
-        for (o, s) in out
-            .iter_mut()
-            .zip(self.slugs.iter().skip(self.exit_idx + 1))
-        {
+        for (o, s) in out.iter_mut().zip(a.iter().chain(b)) {
             *o = ((s.start - exit).mm3(), s.material);
             n += 1;
         }
         n
     }
 
-    /// Starts a new slug if `material` differs from the one entering.
+    /// Starts a new slug if `material` differs from the one entering. Inlined: nearly
+    /// every cycle feeds the material already entering, one compare.
+    #[inline]
     pub fn feed(&mut self, material: u8) -> Result<(), ChannelFull> {
-        if self.newest() == material {
+        if self.newest_m == material {
             return Ok(());
         }
+        self.feed_new(material)
+    }
+
+    /// `feed` of a material other than the one entering: a new slug.
+    #[inline(never)]
+    fn feed_new(&mut self, material: u8) -> Result<(), ChannelFull> {
         self.slugs
             .push_back(Slug {
                 material,
@@ -199,6 +231,8 @@ impl<const N: usize> Channel<N> {
     /// Moves `dv` of the newest slug's material in at the junction; as much leaves the
     /// channel into the filament and lands on the plate. Returns how many material changes
     /// landed on the plate during this advance.
+    /// Inlined: the fast path is a few instructions, the slow one out of line.
+    #[inline]
     pub fn advance(&mut self, dv: Vol) -> u32 {
         if dv.0 <= 0 {
             return 0;
@@ -218,6 +252,12 @@ impl<const N: usize> Channel<N> {
             self.entered += dv;
             return 0;
         }
+        self.advance_crossing(dv)
+    }
+
+    /// `advance` of `dv > 0` that moves a slug start past the exit or onto the plate.
+    #[inline(never)]
+    fn advance_crossing(&mut self, dv: Vol) -> u32 {
         self.crossed = true;
         let newest = self.newest() as usize;
         if let Some(v) = self.in_channel.get_mut(newest) {

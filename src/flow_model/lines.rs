@@ -28,6 +28,10 @@ pub struct LineParams<R> {
     pub alpha_rise: R,
     /// Same while closed.
     pub alpha_decay: R,
+    /// `drive`'s answers, closed (0) and open (1): the cycle's step picks one by the
+    /// valve's state with one index instead of three selects. Filled in by `new` (and
+    /// `with_drives`, which a caller that changes the fields above calls again).
+    drives: [(R, R, R); 2],
 }
 
 impl<R: Real> LineParams<R> {
@@ -45,16 +49,24 @@ impl<R: Real> LineParams<R> {
             tau_decay: inlet.decay_s,
             alpha_rise: alpha(dt, inlet.rise_s),
             alpha_decay: alpha(dt, inlet.decay_s),
+            drives: [(R::ZERO, R::ZERO, R::ZERO); 2],
         }
+        .with_drives()
     }
+
+    /// These constants with `drive`'s table filled in from them.
+    pub fn with_drives(mut self) -> Self {
+        self.drives = [
+            (R::ZERO, self.tau_decay, self.alpha_decay),
+            (self.supply, self.tau_rise, self.alpha_rise),
+        ];
+        self
+    }
+
     /// (target, tau, alpha) for a valve state.
     #[inline]
     pub fn drive(&self, open: bool) -> (R, R, R) {
-        if open {
-            (self.supply, self.tau_rise, self.alpha_rise)
-        } else {
-            (R::ZERO, self.tau_decay, self.alpha_decay)
-        }
+        self.drives[open as usize]
     }
 }
 
@@ -167,7 +179,9 @@ mod tests {
             tau_decay: tau,
             alpha_rise: alpha(dt, tau),
             alpha_decay: alpha(dt, tau),
+            drives: [(0.0, 0.0, 0.0); 2],
         }
+        .with_drives()
     }
 
     #[test]
