@@ -205,12 +205,20 @@ impl<const N: usize> Ramp<N> {
     /// `push` while `narrowing`: the window's mean moves a frame, and its width a frame
     /// towards the goal.
     /// Returns the half window before the push (`crate::window_sums` follows the width).
+    #[inline(always)]
     pub fn push_narrow(&mut self, frame: Frame<N>, steps: &mut StepRamps) -> u32 {
+        self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
+        self.ring[self.newest as usize] = frame;
+        self.narrow_rest(steps)
+    }
+
+    /// `push_narrow` once the frame is in its slot (inlined, the caller builds the frame
+    /// straight into it: built on the stack and copied, it cost 12 loads and stores).
+    #[inline(never)]
+    fn narrow_rest(&mut self, steps: &mut StepRamps) -> u32 {
         steps.tick();
         let big = self.window as usize / 2;
         let h = self.half as usize;
-        self.newest = (self.newest + 1) & (RAMP_CAPACITY as u32 - 1);
-        self.ring[self.newest as usize] = frame;
         self.sum_move(big - h, big + h + 1);
         if self.goal != self.half {
             let before = self.mean_offset(steps);
