@@ -43,9 +43,10 @@ const QUEUE: usize = crate::capacity::RAMP_CAPACITY / 2 / BLOCK as usize;
 /// envelopes take (up to a window behind the newest) have numbers from 0.
 const FIRST_FRAME: i32 = crate::capacity::RAMP_CAPACITY as i32;
 
-/// Blocks whose summed budget is kept: the envelopes' reach and more, a power of two (its
-/// index a mask, not a division).
-const BLOCKS: usize = 2 * QUEUE;
+/// Blocks whose summed budget is kept: the envelopes' reach, and two more. Not 64 (a mask
+/// for an index): that tipped the firmware's `control_state` into building the executor
+/// on its stack frame (4 648 B, over `.ci/firmware-stack`'s 4 KiB), for 4 instructions.
+const BLOCKS: usize = QUEUE + 2;
 
 /// Weight of the low envelope (the latest slowing that meets the flow) against the high
 /// one in the head's aim; offline on the fine features' worst stretch at 475 mm/s^2
