@@ -87,7 +87,8 @@ const AHEAD_MOST: f32 = 2.0;
 /// whole way, 504 at half).
 const CAP_SHARE: f32 = 0.5;
 
-/// Path behind the mean whose chord gives a lead's direction, units (5 um).
+/// Path behind the mean whose chord gives a lead's direction, units (15 um; at 5 um the
+/// chord is short enough for the mean's rounding to show: the stripes' X 534 mm/s^2).
 const LEAD_TANGENT: f32 = 150.0;
 
 #[derive(Clone, Copy, Debug)]
