@@ -597,9 +597,7 @@ mod tests {
             chord: [dv, 0],
             chord8: [dv, 0],
             moved: (dv as u32 * 1000, 1000),
-            step: dv,
             span: 1000,
-            lead: 0,
         }
     }
 

@@ -7,11 +7,11 @@
 //! before the follower started are not counted; each sum says how many frames it holds.
 //! Stops at the sums: the follower decides what they mean.
 
-use crate::ramp::{Frame, Ramp};
+use crate::ramp::Ramp;
 
-/// The mean's path where the ring last knows it, `lead` frames before the newest (the
-/// mean's window's half plus one), for the follower to plan by. Positions in units
-/// (0.1 um), moves as volume (`Vol` units).
+/// The mean's path where the ring last knows it, the mean's window's half plus one frames
+/// before the newest, for the follower to plan by. Positions in units (0.1 um), moves as
+/// volume (`Vol` units).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Look {
     /// The mean's move into that frame times the window, X/Y: the newest frame less the
@@ -22,12 +22,8 @@ pub struct Look {
     /// The plan's moves over the window ending at the newest frame, summed, and its
     /// frames (0 until every one is counted: `WindowSums`).
     pub moved: (u32, u32),
-    /// The plan's move into that frame.
-    pub step: i32,
     /// The window, frames.
     pub span: u32,
-    /// Frames from that one to the newest.
-    pub lead: u32,
 }
 
 /// Frames before the start counted a push, on top of the new one: the mean's window of
@@ -171,15 +167,11 @@ impl WindowSums {
             let (p, q) = (pos(a), pos(b));
             [p[0].wrapping_sub(q[0]), p[1].wrapping_sub(q[1])]
         };
-        let lead = ring.half() as usize + 1;
-        let step: &Frame<N> = ring.back(lead);
         Look {
             chord: d(0, l),
             chord8: d(8, l + 8),
             moved: whole(self.ahead, l as u32),
-            step: step.dv,
             span: l as u32,
-            lead: lead as u32,
         }
     }
 }
@@ -187,6 +179,7 @@ impl WindowSums {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ramp::Frame;
     use crate::step_ramps::StepRamps;
 
     /// A frame of flow `dv` at `x` units.
@@ -243,8 +236,6 @@ mod tests {
             assert_eq!(sums.mean(&r), (sum(big - h, big + h), l as u32), "push {i}");
             let look = sums.look(&r);
             assert_eq!(look.moved, (sum(0, l - 1), l as u32), "push {i}");
-            assert_eq!(look.lead as usize, h + 1);
-            assert_eq!(look.step, r.back(h + 1).dv);
             let (p, q) = (r.back(0).pos, r.back(l).pos);
             assert_eq!(look.chord, [p[0] - q[0], p[1] - q[1]], "push {i}");
         }

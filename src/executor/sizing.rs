@@ -92,11 +92,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let machine_half = self.machine.ramp_cycles / 2;
         let (goal, done) = if w.sizing.checking() {
             // The follower takes the flow's change from the frames planned next; the
-            // window is sized for the turns and rounding only. The bead's speed per
-            // volume: position units (1e-4 mm) per volume unit (1e-10 mm^3, `Vol`),
-            // through the bead's own section.
-            // It plans by the plan's moves over the ring's windows (`window_sums`): they
-            // are counted from here, a few pushes to fill, and it starts once they are.
+            // window is sized for the turns and rounding only. It plans by the plan's
+            // moves over the ring's windows (`window_sums`): they are counted from here,
+            // a few pushes to fill, and it starts once they are.
             if !self.follow.active() {
                 if !self.sums.on() {
                     self.sums.start();
@@ -106,6 +104,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 }
             }
             w.sizing.begin_follow();
+            // The bead's speed per volume: position units (1e-4 mm) per volume unit
+            // (1e-10 mm^3, `Vol`), through the bead's own section.
             self.follow.start(w.inv_s.to_f32() * 1.0e-6);
             self.ramp.keep_slow();
             (None, false)
