@@ -111,15 +111,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
         let mut f = probe!(FRAME, self.frame());
         f.dv = dv.0.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         let h0 = probe!(RING, self.ramp.push_narrow(f, &mut self.step_ramps));
-        // The follower's window sums (`crate::window_sums`) count while a decision is
-        // sized or the follower runs: inside those branches, so that the usual narrowed
-        // tick pays nothing for them (6 instructions on the instantaneous valves' worst).
-        let mut counted = false;
+        // The follower's window sums (`crate::window_sums`), while it runs or waits for
+        // them to fill.
+        if self.sums.on() {
+            self.sums.pushed(&self.ramp, h0);
+        }
         if self.sizer.is_some() {
-            if self.sums.on() {
-                self.sums.pushed(&self.ramp, h0);
-                counted = true;
-            }
             // A valve decision's sizing, a step a frame (`sizing_step`), on the slow path
             // only: the usual tick pays nothing for it.
             probe!(SIZING, self.sizing_step());
@@ -132,9 +129,6 @@ impl<R: Real, const N: usize> Executor<R, N> {
         probe!(TURNS, self.slow_at_turns());
         if self.follow.active() {
             probe!(FOLLOWER, {
-                if !counted && self.sums.on() {
-                    self.sums.pushed(&self.ramp, h0);
-                }
                 let (sums, ramp) = (&self.sums, &self.ramp);
                 let lead = ramp.half() + 1;
                 let step = ramp.back(lead as usize).dv;
