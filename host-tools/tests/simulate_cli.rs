@@ -373,7 +373,8 @@ fn ctrl_c_removes_the_temporary_files_and_writes_nothing() {
 /// (issue 22's machine at 500 mm/s^2 on 0.6 mm stripes, shorter than the channel: 8.6 %
 /// off; the 1.5 mm stripes are within it now, 0.86 %, where the windows alone left 5.2 %)
 /// and stays quiet where it holds (the 1.5 mm stripes at 1 000 mm/s^2); the exit status
-/// is 0 either way.
+/// is 0 either way. Where it leaves the bound, the `section floor` line gives the least
+/// any head within the limit could do there (`dollop_sim::floor`).
 #[test]
 fn report_warns_when_the_section_or_an_axis_leaves_its_bound() {
     let dir = tempfile::tempdir().unwrap();
@@ -429,7 +430,25 @@ fn report_warns_when_the_section_or_an_axis_leaves_its_bound() {
         );
         if !warned {
             assert!(!stdout.contains("WARNING"), "{stdout}");
+            assert!(!stdout.contains("section floor"), "{stdout}");
+            continue;
         }
+        // Where the section leaves its bound, the report says how near the physics
+        // allows there: never nearer than this run came (the floor is a least).
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with("section floor"))
+            .unwrap_or_else(|| panic!("no section floor line: {stdout}"));
+        let percents: Vec<f64> = line
+            .split(" %")
+            .filter_map(|p| p.rsplit(' ').next()?.trim_start_matches('(').parse().ok())
+            .collect();
+        assert_eq!(percents.len(), 4, "{line}");
+        let (run, run_all, floor, floor_all) = (percents[0], percents[1], percents[2], percents[3]);
+        assert!(
+            floor >= 0.0 && floor <= run && floor_all <= run_all,
+            "the floor beats the run that measured it: {line}"
+        );
     }
 }
 

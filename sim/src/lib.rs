@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod designs;
+pub mod floor;
 pub mod metrics;
 pub mod pause;
 pub mod plant;

@@ -113,6 +113,8 @@ pub struct Metrics {
     pub section_straight_range: (f64, f64),
     /// Where the worst of those occurred (x, y), mm.
     pub section_straight_worst_at: [f64; 2],
+    /// The control cycle (from the run's start) whose window is that worst.
+    pub section_straight_worst_cycle: u64,
     /// Every cross-section / S over `SECTION_WINDOW_MM` windows, in bead order: for
     /// `section_band`, the issue's own measure (a percentile range, not the worst).
     pub section_samples: Vec<f64>,
@@ -270,6 +272,8 @@ pub struct Meter {
     /// The current bead's latest short windows (volume, length, end, length x section),
     /// at least `SECTION_LONG_MM` of them once the bead is that long.
     recent: std::collections::VecDeque<(f64, f64, [f64; 2], f64)>,
+    /// Cycles metered so far.
+    cycles: u64,
     metrics: Metrics,
 }
 
@@ -405,6 +409,7 @@ impl Meter {
             current: None,
             last_pos: [f64::NAN; 2],
             recent: Default::default(),
+            cycles: 0,
             metrics: Metrics {
                 section_range: (f64::INFINITY, f64::NEG_INFINITY),
                 section_long_range: (f64::INFINITY, f64::NEG_INFINITY),
@@ -416,6 +421,7 @@ impl Meter {
 
     /// Feeds one cycle.
     pub fn cycle(&mut self, c: CycleIn<'_>) {
+        self.cycles += 1;
         let bead = c
             .bead_command
             .and_then(|i| self.of_command.get(i as usize).copied().flatten());
@@ -525,6 +531,7 @@ impl Meter {
                 let (lo, hi) = self.metrics.section_straight_range;
                 if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
                     self.metrics.section_straight_worst_at = at;
+                    self.metrics.section_straight_worst_cycle = self.cycles - 1;
                 }
                 self.metrics.section_straight_range = (lo.min(ratio), hi.max(ratio));
             }

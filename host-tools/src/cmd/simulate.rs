@@ -2,7 +2,9 @@
 //! virtual time, writes the CSV trace and the plate heatmap, prints the report), and its
 //! errors onto the flag names.
 
-use crate::simulate::{report_text, simulate_job, warnings, Bounds, Heatmap, Recording};
+use crate::simulate::{
+    report_text, section_floor, simulate_job, warnings, Bounds, Heatmap, Recording,
+};
 use crate::slicer::{self, output};
 use anyhow::Context;
 use dollop_sim::{Job, PausePlan};
@@ -126,11 +128,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in [&a.trace, &a.heatmap].into_iter().flatten() {
         println!("wrote {}", path.display());
     }
+    let bounds = Bounds::of(&config);
+    let floor = || section_floor(&config, &job, &plan, plant, &result, bounds.section);
     if a.report || (a.trace.is_none() && a.heatmap.is_none()) {
         print!("{}", report_text(&result, &config, plant, wall));
+        if let Some(f) = floor() {
+            print!("{f}");
+        }
     } else {
-        for w in warnings(&result, &config, &Bounds::of(&config)) {
+        for w in warnings(&result, &config, &bounds) {
             eprintln!("dollop: WARNING: {w}");
+        }
+        if let Some(f) = floor() {
+            eprint!("{f}");
         }
     }
     if let Some(f) = result.fault {

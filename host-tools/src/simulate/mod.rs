@@ -5,9 +5,11 @@
 //! and `serve::simulate_page` (the dashboard) are the front ends. The physics and the metrics
 //! are `dollop-sim`'s.
 
+pub mod floor_note;
 pub mod heatmap;
 pub mod report;
 
+pub use floor_note::section_floor;
 pub use heatmap::{Heatmap, PALETTE};
 pub use report::{report_text, warnings, Bounds, ACCEL_SLACK};
 

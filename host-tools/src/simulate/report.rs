@@ -117,7 +117,8 @@ pub fn report_text(
 /// the machine's top flow (fastest bead speed times the section, mm^3/s). A config that
 /// does not validate (the run would not have happened) gets 1 % and no top flow.
 pub struct Bounds {
-    section: f64,
+    /// The bead section's bound over 0.2 mm (`Machine::section_bound`).
+    pub section: f64,
     top_flow: f64,
 }
 
