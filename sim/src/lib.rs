@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod designs;
+#[cfg(feature = "floor")]
 pub mod floor;
 pub mod metrics;
 pub mod pause;
