@@ -33,6 +33,14 @@ pub fn section_floor(
         plant,
         ..Default::default()
     };
+    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        // The rerun takes as long as the run did up to there: say so on a terminal.
+        eprintln!(
+            "dollop: finding the section floor (rerunning the job to {:.1} s of {:.1} s)",
+            m.section_straight_worst_cycle as f64 * dt,
+            r.time_s
+        );
+    }
     let stretch = match stretch_at(
         config,
         job,
