@@ -59,13 +59,13 @@ pub fn section_floor(
         ..Default::default()
     };
     Some(match floor(&stretch, &o) {
-        Ok(f) => text(&f, accel),
+        Ok(f) => text(&f, accel, bound),
         Err(e) => format!("section floor     not found: {e}\n"),
     })
 }
 
-/// The line, and its reading.
-fn text(f: &Floor, accel: f64) -> String {
+/// The line, and its reading against the section's `bound`.
+fn text(f: &Floor, accel: f64, bound: f64) -> String {
     let pc = |x: f64| format!("{:.2} %", x * 100.0);
     let opt = |x: Option<f64>| x.map_or("none".to_string(), pc);
     let mut s = format!(
@@ -76,8 +76,12 @@ fn text(f: &Floor, accel: f64) -> String {
         opt(f.straight),
         opt(f.all),
     );
+    let allows = format!(
+        "the machine allows {} there: the controller's plan, not the machine, leaves it off",
+        pc(bound)
+    );
     let reading = match f.straight {
-        Some(fl) if fl <= 0.01 => "the machine allows 1 % there: the controller's plan, not the machine, leaves it off",
+        Some(fl) if fl <= bound => allows.as_str(),
         Some(_) => "the machine allows no better than that there: a stiffer X/Y, a slower flow change or a wider turn would",
         None => "no head within the limit meets the run's own turns and lag there",
     };
