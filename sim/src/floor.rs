@@ -190,9 +190,7 @@ fn steps(s: &Stretch, o: &FloorOptions) -> Result<Steps, FloorError> {
             break;
         }
         let seg = &ang[k.min(n - 1)..j.min(n).max(k.min(n - 1) + 1)];
-        let lo = seg.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = seg.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        windows.push((k, j, hi - lo > turn));
+        windows.push((k, j, spread(seg) > turn));
     }
     Ok(Steps {
         dt,
@@ -202,6 +200,13 @@ fn steps(s: &Stretch, o: &FloorOptions) -> Result<Steps, FloorError> {
         kappa,
         windows,
     })
+}
+
+/// Highest less lowest of `x` (a window's lead, or its headings).
+fn spread(x: &[f64]) -> f64 {
+    let hi = x.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let lo = x.iter().cloned().fold(f64::INFINITY, f64::min);
+    hi - lo
 }
 
 /// Rows of `A x + s = b` by cone, gathered as triplets.
@@ -369,10 +374,7 @@ fn check(
         if turn && turn_caps.is_some() {
             continue;
         }
-        let span = &lead[k..=j];
-        let hi = span.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        let lo = span.iter().cloned().fold(f64::INFINITY, f64::min);
-        worst = worst.max((hi - lo) / o.window_mm);
+        worst = worst.max(spread(&lead[k..=j]) / o.window_mm);
     }
     if (worst - eps).abs() > 1e-4 + 1e-3 * eps {
         return Err(FloorError::Solver(format!(
@@ -413,12 +415,7 @@ pub fn floor(stretch: &Stretch, o: &FloorOptions) -> Result<Floor, FloorError> {
     let spread: Vec<f64> = st
         .windows
         .iter()
-        .map(|&(k, j, _)| {
-            let span = &st.lead[k..=j];
-            let hi = span.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-            let lo = span.iter().cloned().fold(f64::INFINITY, f64::min);
-            (hi - lo) / w
-        })
+        .map(|&(k, j, _)| spread(&st.lead[k..=j]) / w)
         .collect();
     let worst = |turns: bool| {
         st.windows
