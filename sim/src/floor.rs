@@ -18,6 +18,7 @@ use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
 use dollop::config::Config;
+use std::f64::consts::{PI, TAU};
 
 /// A stretch of a run: the commanded head position and the paste landed, each control cycle.
 #[derive(Clone, Debug, Default)]
@@ -153,19 +154,8 @@ fn steps(s: &Stretch, o: &FloorOptions) -> Result<Steps, FloorError> {
     for k in 0..n {
         let a = if ds[k] > 1e-7 {
             let raw = (p[k + 1][1] - p[k][1]).atan2(p[k + 1][0] - p[k][0]);
-            match last {
-                Some(l) => {
-                    let mut d = raw - l;
-                    while d > std::f64::consts::PI {
-                        d -= 2.0 * std::f64::consts::PI;
-                    }
-                    while d < -std::f64::consts::PI {
-                        d += 2.0 * std::f64::consts::PI;
-                    }
-                    l + d
-                }
-                None => raw,
-            }
+            // The turn from the last heading, taken within half a turn either way.
+            last.map_or(raw, |l| l + (raw - l + PI).rem_euclid(TAU) - PI)
         } else {
             last.unwrap_or(0.0)
         };
