@@ -49,6 +49,11 @@ pub struct Sizing {
     /// The turns ahead, fed by the caller once `step` is done.
     pub walk: TurnWalk,
     flow: FlowChange,
+    /// A bead's start from closed valves: how long (s) the window may keep to what the
+    /// flow's rise and the turns within `soon` mm need before it widens to the rest
+    /// (`half_now`); 0 otherwise.
+    pub defer: f32,
+    soon: f32,
 }
 
 /// The flow's change a decision makes: the channel's speed `v_c` decaying (time
@@ -150,14 +155,24 @@ impl Sizing {
         // The flow's change lies within the dead time and a few time constants of the
         // decision; a turn there meets it.
         let near = crate::fast::max(f.v_o, f.v_c) * (f.delay + f.settle + self.w);
-        self.walk = TurnWalk::new(f.v_turn, near, limit);
+        self.walk = TurnWalk::new(f.v_turn, near, limit).soon(self.soon);
         f.stage = 4;
         true
     }
 
     /// Half the window (frames) with the turns fed so far, or `None` for the machine's.
     pub fn half<R: Real, const N: usize>(&self, m: &Machine<R, N>) -> Option<u32> {
-        let w = crate::fast::max(self.w, self.walk.window());
+        self.half_of(m, self.walk.window())
+    }
+
+    /// `half` over the turns within `soon` only: a bead's start keeps to it for `defer`
+    /// seconds (the whole `half` without a deferral).
+    pub fn half_now<R: Real, const N: usize>(&self, m: &Machine<R, N>) -> Option<u32> {
+        self.half_of(m, self.walk.window_soon())
+    }
+
+    fn half_of<R: Real, const N: usize>(&self, m: &Machine<R, N>, turns: f32) -> Option<u32> {
+        let w = crate::fast::max(self.w, turns);
         let cycles = w / m.dt().to_f32();
         let half = m.ramp_cycles / 2;
         if cycles.is_nan() || cycles < 0.0 || cycles >= (2 * half + 1) as f32 {
@@ -188,6 +203,8 @@ impl Sizing {
                 t: 0.0,
                 stage: 4,
             },
+            defer: 0.0,
+            soon: f32::INFINITY,
         }
     }
 }
@@ -255,6 +272,19 @@ pub fn switch_start<R: Real, const N: usize>(
             .map_or(0.0, |_| tau_r)
             .max(close.map_or(0.0, |_| tau_d));
     let v_turn = flush.map_or(v, |f| f.min(v));
+    // A bead's start: the head stands while the paste comes, then follows the flow's
+    // rise. The machine's window, widened there for turns far ahead, led the paste by
+    // half of it (the 0.6 mm stripes at 500 mm/s^2: 4.7 % off over 0.2 mm of the first
+    // bead's start, 1.1 % deferred). It widens once the rise has settled, well before
+    // any turn it was widened for reaches the window: the turns within `soon`, which the
+    // head may reach by then at the fastest flow, count at once.
+    let (defer, soon) = if close.is_none() && open.is_some() {
+        let d = delay + settle;
+        let ahead = m.ramp_cycles as f32 * m.dt().to_f32();
+        (d, m.v_flow_max.to_f32() * (d + ahead))
+    } else {
+        (0.0, f32::INFINITY)
+    };
     Some(Sizing {
         w: 0.0,
         limit,
@@ -271,6 +301,8 @@ pub fn switch_start<R: Real, const N: usize>(
             t: 0.0,
             stage: if mixed { 0 } else { 1 },
         },
+        defer,
+        soon,
     })
 }
 
@@ -331,6 +363,9 @@ pub struct TurnWalk {
     reach: f32,
     /// The largest squared change a window must take (relative to `v`).
     most: f32,
+    /// Turns up to this far (mm) count in `most_soon` too (`soon`).
+    soon: f32,
+    most_soon: f32,
     prev: Option<(Turn, bool)>,
     seen: u32,
 }
@@ -344,9 +379,17 @@ impl TurnWalk {
             limit,
             reach: v * v / limit,
             most: 0.0,
+            soon: f32::INFINITY,
+            most_soon: 0.0,
             prev: None,
             seen: 0,
         }
+    }
+
+    /// Keeps apart the window the turns within `d` mm need (`window_soon`).
+    pub fn soon(mut self, d: f32) -> Self {
+        self.soon = d;
+        self
     }
 
     /// Whether it has seen the most turns it looks at.
@@ -370,8 +413,9 @@ impl TurnWalk {
         let close = t.at < self.near;
         let change = |c2: f32| if close { crate::fast::max(c2, 1.0) } else { c2 };
         let tight = t.radius * self.limit < self.v * self.v;
+        let mut most = self.most;
         if tight {
-            self.most = crate::fast::max(self.most, change(chord2(t.from, t.to)));
+            most = crate::fast::max(most, change(chord2(t.from, t.to)));
         }
         if let Some((p, p_tight)) = self.prev {
             if tight || p_tight {
@@ -379,17 +423,30 @@ impl TurnWalk {
                 // Closer than the head goes over the pair's window.
                 let gap = t.at - p.at;
                 if gap < 0.0 || gap * gap < self.reach * self.reach * pair {
-                    self.most = crate::fast::max(self.most, pair);
+                    most = crate::fast::max(most, pair);
                 }
             }
         }
+        if t.at < self.soon {
+            self.most_soon = most;
+        }
+        self.most = most;
         self.prev = Some((t, tight));
     }
 
     /// The window (s) the turns fed so far need.
     pub fn window(&self) -> f32 {
-        if self.most > 0.0 {
-            self.v / self.limit * libm::sqrtf(self.most)
+        self.window_of(self.most)
+    }
+
+    /// The window (s) the turns fed so far that lie within `soon` need.
+    pub fn window_soon(&self) -> f32 {
+        self.window_of(self.most_soon)
+    }
+
+    fn window_of(&self, most: f32) -> f32 {
+        if most > 0.0 {
+            self.v / self.limit * libm::sqrtf(most)
         } else {
             0.0
         }
@@ -506,5 +563,38 @@ mod tests {
         let d = [0.866_025_4, 0.5];
         let w = turn_window(10.0, 6.0, 475.0, [t(5.0, 0.01, x, d)].into_iter());
         assert!((w - 10.0 / 475.0).abs() < 1e-6, "{w}");
+    }
+
+    /// A bead start's window at once counts the turns within `soon` only; the whole
+    /// window, every turn fed, as before. A pair straddling `soon` counts at once when its
+    /// second turn lies within it.
+    #[test]
+    fn a_bead_start_keeps_far_turns_for_later() {
+        let t = |at: f32, radius: f32, from: [f32; 2], to: [f32; 2]| Turn {
+            at,
+            radius,
+            from,
+            to,
+        };
+        let (x, y, nx) = ([1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]);
+        let r2 = core::f32::consts::SQRT_2;
+        let far = [t(0.5, 0.4, x, y), t(9.0, 0.05, x, y), t(9.1, 0.05, y, nx)];
+        let mut w = TurnWalk::new(10.0, 0.0, 475.0).soon(2.0);
+        for turn in far {
+            w.feed(turn);
+        }
+        // The loose turn near the start needs nothing; the far U-turn its reversal.
+        assert_eq!(w.window_soon(), 0.0);
+        assert!((w.window() - 20.0 / 475.0).abs() < 1e-6, "{}", w.window());
+        let mut w = TurnWalk::new(10.0, 0.0, 475.0).soon(2.0);
+        for turn in [t(1.0, 0.05, x, y), t(9.0, 0.05, y, nx)] {
+            w.feed(turn);
+        }
+        assert!((w.window_soon() - 10.0 * r2 / 475.0).abs() < 1e-6);
+        assert_eq!(w.window_soon(), w.window());
+        // Without `soon` both are the whole.
+        let mut w = TurnWalk::new(10.0, 0.0, 475.0);
+        w.feed(t(9.0, 0.05, x, y));
+        assert_eq!(w.window_soon(), w.window());
     }
 }

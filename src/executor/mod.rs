@@ -190,6 +190,9 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// starting at a plan volume with that half (`turns`).
     mean_half: u32,
     cap_cache: ((Vol, u32), R),
+    /// A bead start's widening of the ramp's mean, put off to this plan cycle
+    /// (`sizing::widen_when_due`): (cycle, half window).
+    deferred: Option<(u64, u32)>,
     /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
     /// 3 KiB: last, so that the fields the tick reads keep their short offsets (the
     /// slowing's lag behind it cost every machine's tick an instruction or more).
@@ -253,6 +256,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             sums: crate::window_sums::WindowSums::new(),
             turn_slow: crate::turn_slow::TurnSlow::off(),
             mean_half: 0,
+            deferred: None,
             cap_cache: ((Vol::ZERO, 0), R::ZERO),
         }
     }

@@ -15,6 +15,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// that frame (after a job begins, a config loads, or the outputs went safe).
     pub(super) fn hold_ramp(&mut self) {
         self.sizer = None;
+        self.deferred = None;
         self.sums.stop();
         if self.ramped {
             let f = self.frame();
@@ -123,6 +124,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             if self.sizer.is_some() {
                 self.ramp.keep_slow();
             }
+        }
+        if self.deferred.is_some() {
+            self.widen_when_due();
         }
         // The soft machines' slowing at tight fillets, for the next cycle's position
         // (`turns`): here, on the narrowed ring's path, the others pay nothing for it.

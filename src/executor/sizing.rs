@@ -56,6 +56,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// turns ahead a few at a time after it, so that the decision's cycle, which the
     /// valve command already makes the dearest, carries none of it.
     pub(super) fn size_ramp(&mut self, opening: Option<u8>) {
+        // A new decision sizes the window afresh.
+        self.deferred = None;
         self.sizer = Some(Pending::Start {
             opening,
             closing: self.model.commanded(),
@@ -125,17 +127,42 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 ended || h.is_none() || w.sizing.walk.full(),
             )
         };
+        // A bead's start keeps to the window its rise and near turns need for a while
+        // (`Sizing::defer`); the whole window comes after.
+        let (defer, now) = (
+            w.sizing.defer,
+            w.sizing.half_now(&self.machine).unwrap_or(machine_half),
+        );
         if let Some(g) = goal {
-            self.ramp.set_goal(g);
+            let g_now = if defer > 0.0 { now.min(g) } else { g };
+            self.ramp.set_goal(g_now);
             // The slowing at tight fillets (`turns`) sizes its cap by the decision's
             // whole window, as the walk ends: set at each step of the walk, it took the
             // 0.6 mm stripes' row ends from 21.8 to 27.3 % off over 0.2 mm.
             if done {
                 self.mean_half = g;
+                self.deferred = (g > g_now).then(|| {
+                    let cycles = (defer / self.machine.dt().to_f32()) as u64;
+                    (cycle + cycles, g)
+                });
             }
         }
         if done {
             self.sizer = None;
+        }
+    }
+
+    /// A bead start's deferred widening (`Sizing::defer`), once due; the ring's slow path
+    /// until then. Out of line: only after a bead's start.
+    #[inline(never)]
+    pub(super) fn widen_when_due(&mut self) {
+        if let Some((due, g)) = self.deferred {
+            if self.cycle >= due {
+                self.ramp.set_goal(g);
+                self.deferred = None;
+            } else {
+                self.ramp.keep_slow();
+            }
         }
     }
 
