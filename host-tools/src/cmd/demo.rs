@@ -138,6 +138,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     heat.stage(&mut staged, &plate_path)?;
     output::commit(staged)?;
     print!("{}", simulate::report_text(&result, &config, true, wall));
+    let bound = simulate::Bounds::of(&config).section;
+    let plan = dollop_sim::PausePlan::default();
+    if let Some(f) = simulate::section_floor(&config, &job, &plan, true, &result, bound) {
+        print!("{f}");
+    }
     println!(
         "wrote {}, {}, {}, {}",
         job_path.display(),
