@@ -502,6 +502,21 @@ fn window(v: f32, tau: f32, limit: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// Headings along X, along Y and back along X.
+    const X: [f32; 2] = [1.0, 0.0];
+    const Y: [f32; 2] = [0.0, 1.0];
+    const NX: [f32; 2] = [-1.0, 0.0];
+
+    /// A fillet `at` mm ahead, of `radius` mm, turning from heading `from` to `to`.
+    fn t(at: f32, radius: f32, from: [f32; 2], to: [f32; 2]) -> Turn {
+        Turn {
+            at,
+            radius,
+            from,
+            to,
+        }
+    }
+
     /// The window is the f64 reference's (`config::ramp_window`, bisection) or a little
     /// longer, never shorter: within the limit, and within 1 % of the shortest.
     #[test]
@@ -535,13 +550,7 @@ mod tests {
     /// a turn of under 60 degrees still needs the speed's own change.
     #[test]
     fn turns_need_their_velocity_change_over_the_window() {
-        let t = |at: f32, radius: f32, from: [f32; 2], to: [f32; 2]| Turn {
-            at,
-            radius,
-            from,
-            to,
-        };
-        let (x, y, nx) = ([1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]);
+        let (x, y, nx) = (X, Y, NX);
         let r2 = core::f32::consts::SQRT_2;
         // 10 mm/s on 0.1 mm: 1 000 mm/s^2 against 475.
         let w = turn_window(10.0, 0.0, 475.0, [t(5.0, 0.1, x, y)].into_iter());
@@ -570,13 +579,7 @@ mod tests {
     /// second turn lies within it.
     #[test]
     fn a_bead_start_keeps_far_turns_for_later() {
-        let t = |at: f32, radius: f32, from: [f32; 2], to: [f32; 2]| Turn {
-            at,
-            radius,
-            from,
-            to,
-        };
-        let (x, y, nx) = ([1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]);
+        let (x, y, nx) = (X, Y, NX);
         let r2 = core::f32::consts::SQRT_2;
         let far = [t(0.5, 0.4, x, y), t(9.0, 0.05, x, y), t(9.1, 0.05, y, nx)];
         let mut w = TurnWalk::new(10.0, 0.0, 475.0).soon(2.0);

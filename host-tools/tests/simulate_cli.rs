@@ -379,19 +379,7 @@ fn ctrl_c_removes_the_temporary_files_and_writes_nothing() {
 fn report_warns_when_the_section_or_an_axis_leaves_its_bound() {
     let dir = tempfile::tempdir().unwrap();
     let (job, _) = write_job(dir.path());
-    let fine = dollop_sim::designs::boustrophedon(
-        &dollop_sim::designs::Fill {
-            origin_mm: [20.0, 20.0],
-            width_mm: 9.0,
-            rows: 4,
-            pitch_mm: 0.8,
-            layers: 1,
-            layer_mm: 0.6,
-            cell_mm: 0.1,
-            prime_mm: 8.0,
-        },
-        dollop_sim::designs::stripes(0.6),
-    );
+    let fine = dollop_sim::designs::short_stripes();
     let (fine, _) = write_commands(
         dir.path(),
         "fine.dlp",

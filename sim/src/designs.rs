@@ -145,6 +145,24 @@ pub fn stripes(width_mm: f64) -> impl Fn(f64, f64, usize) -> u8 {
     move |x, _, _| ((x / width_mm).floor() as i64).rem_euclid(2) as u8
 }
 
+/// Features shorter than the channel: four 9 mm rows of 0.6 mm stripes at 0.8 mm pitch
+/// from (20, 20) mm, one layer, after an 8 mm priming line. On issue 22's soft machine
+/// at 500 mm/s^2 the report warns on their section (the simulate CLI's and the
+/// dashboard's tests of the `section floor` line).
+pub fn short_stripes() -> Job {
+    let fill = Fill {
+        origin_mm: [20.0, 20.0],
+        width_mm: 9.0,
+        rows: 4,
+        pitch_mm: 0.8,
+        layers: 1,
+        layer_mm: 0.6,
+        cell_mm: 0.1,
+        prime_mm: 8.0,
+    };
+    boustrophedon(&fill, stripes(0.6))
+}
+
 /// A chessboard of `square_mm` squares, shifted by one square per layer.
 pub fn chessboard(square_mm: f64) -> impl Fn(f64, f64, usize) -> u8 {
     move |x, y, layer| {

@@ -252,17 +252,7 @@ mod tests {
         let mut config: Config = toml::from_str(&text).unwrap();
         config.motion.max_accel_mm_s2[0] = 500.0;
         config.motion.max_accel_mm_s2[1] = 500.0;
-        let fill = dollop_sim::designs::Fill {
-            origin_mm: [20.0, 20.0],
-            width_mm: 9.0,
-            rows: 4,
-            pitch_mm: 0.8,
-            layers: 1,
-            layer_mm: 0.6,
-            cell_mm: 0.1,
-            prime_mm: 8.0,
-        };
-        let job = dollop_sim::designs::boustrophedon(&fill, dollop_sim::designs::stripes(0.6));
+        let job = dollop_sim::designs::short_stripes();
         let run = SimRun::new();
         let out = simulate_inner(&run, &config, &job).unwrap();
         assert!(
