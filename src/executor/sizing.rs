@@ -128,13 +128,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
             )
         };
         // A bead's start keeps to the window its rise and near turns need for a while
-        // (`Sizing::defer`); the whole window comes after.
-        let (defer, now) = (
-            w.sizing.defer,
-            w.sizing.half_now(&self.machine).unwrap_or(machine_half),
-        );
+        // (`Sizing::defer`); the whole window comes after. Worked out for a bead's start
+        // only: it is a software root more on the step.
+        let defer = w.sizing.defer;
+        let now = goal
+            .filter(|_| defer > 0.0)
+            .map(|_| w.sizing.half_now(&self.machine).unwrap_or(machine_half));
         if let Some(g) = goal {
-            let g_now = if defer > 0.0 { now.min(g) } else { g };
+            let g_now = now.map_or(g, |n| n.min(g));
             self.ramp.set_goal(g_now);
             // The slowing at tight fillets (`turns`) sizes its cap by the decision's
             // whole window, as the walk ends: set at each step of the walk, it took the
