@@ -187,13 +187,14 @@ impl<R: Real, const N: usize> Executor<R, N> {
                     self.entry_material = m;
                     self.boundaries.pop_front();
                     self.switch.reset();
+                    // The opening line's dead time, in cycles as the model keeps it.
                     let dead = self
-                        .machine
-                        .inlets
+                        .model
+                        .params()
                         .get(m as usize)
-                        .map_or(R::ZERO, |i| i.open_delay_s);
-                    let cycles = (dead / self.machine.dt()).round_i64().max(0) as u64;
-                    self.stop.reset_committed(self.model.next_cycle() + cycles);
+                        .map_or(0, |p| p.open_delay);
+                    self.stop
+                        .reset_committed(self.model.next_cycle() + dead as u64);
                     switched = true;
                 }
             }
