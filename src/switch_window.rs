@@ -5,7 +5,8 @@
 //! channel still full of paste A); most decisions make far slower ones, and that window's
 //! mean only smears them over the bead. This sizes one decision's window; the ramp ring
 //! narrows or widens its mean to it (`Ramp::set_goal`); what is not sized here (steps of
-//! pressure, power-law pastes, syringes, unequal dead times) keeps the machine's window.
+//! pressure, syringes, unequal dead times) keeps the machine's window, and a
+//! shear-thinning paste's every change goes to the follower (`crate::flow_follow`).
 
 use crate::config::{Machine, RAMP_SHARE};
 use crate::flow_model::FlowModel;
@@ -14,7 +15,8 @@ use crate::real::Real;
 /// A decision's window in the making: half the window (frames) the head's mean needs for
 /// the valves going from the inlets of `closing` (bit mask) to `opening` (none: closing
 /// only), or `None` for the machine's. Newtonian contents and one closing, one opening
-/// pneumatic line of first-order pressure changes with equal dead times only.
+/// pneumatic line of first-order pressure changes with equal dead times only; with
+/// shear-thinning contents the follower takes the change (`switch_start`).
 ///
 /// After the dead time the closing line's pressure decays as `exp(-t / tau_d)` and the
 /// opening one's rises as `1 - exp(-t / tau_r)`; the junction follows the higher, so the
@@ -217,9 +219,14 @@ pub fn switch_start<R: Real, const N: usize>(
     closing: u32,
     opening: Option<u8>,
 ) -> Option<Sizing> {
-    if model.syringes() || !model.all_linear() {
+    if model.syringes() {
         return None;
     }
+    // A shear-thinning paste's flow is no first-order curve of the pressure (its decay
+    // falls at first `1 / n` times faster, `config::flow`'s `Decay`), and its supply
+    // through the contents is no closed form: the follower takes every change there, and
+    // the window is sized for the turns at the fastest flow.
+    let linear = model.all_linear();
     let open = match opening {
         Some(o) => Some(m.inlets.get(o as usize)?),
         None => None,
@@ -233,7 +240,11 @@ pub fn switch_start<R: Real, const N: usize>(
             close = Some(inlet);
         }
     }
-    let r = model.resistance_linear().to_f32();
+    let r = if linear {
+        model.resistance_linear().to_f32()
+    } else {
+        1.0
+    };
     let s = m.bead_area.to_f32();
     let (tau_r, tau_d) = (
         open.map_or(1.0, |o| o.rise_s.to_f32()),
@@ -247,7 +258,12 @@ pub fn switch_start<R: Real, const N: usize>(
             return None;
         }
     }
-    let v_o = open.map_or(0.0, |o| o.supply_pa.to_f32() / r / s);
+    let v_o = match open {
+        None => 0.0,
+        Some(o) if linear => o.supply_pa.to_f32() / r / s,
+        // The fastest any supply drives the head through any contents.
+        Some(_) => m.v_flow_max.to_f32(),
+    };
     let v_c = if close.is_some() {
         model.q().to_f32() / s
     } else {
@@ -259,9 +275,13 @@ pub fn switch_start<R: Real, const N: usize>(
         d.max(i.open_delay_s.max(i.close_delay_s).to_f32())
     });
     let v = v_o.max(v_c);
-    let flush = flushed(model, open, s);
+    let flush = if linear {
+        flushed(model, open, s)
+    } else {
+        None
+    };
     // Several pastes in the channel: the follower's (`Sizing::begin_follow`).
-    let mixed = model.channel().len() > 1;
+    let mixed = model.channel().len() > 1 || !linear;
     // Past the channel's flush the head moves at the opening paste's own speed through a
     // channel full of it (a bead's end: the closing speed, at most). Before the flush it
     // may be faster (paste B opening into paste A), but sizing the turns for that took
