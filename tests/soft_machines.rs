@@ -117,15 +117,7 @@ fn real_valves_at_500_keep_the_limit_and_the_known_section_cost_on_short_feature
         ..fill(9.0, 4, 1)
     };
     let j = job(&f, stripes(0.6));
-    let r = run(&cfg, &j);
-    summary("short features/real valves 500", &r);
-    assert_floor_below("short features/real valves 500", &cfg, &j, &r);
-    assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{:?}",
-        r.metrics.mismatches
-    );
+    let r = run_to_the_end("short features/real valves 500", &cfg, &j);
     assert!(r.metrics.worst_boundary() <= 0.02);
     for a in 0..2 {
         assert!(
@@ -282,6 +274,21 @@ fn assert_floor_below(name: &str, cfg: &Config, job: &dollop_sim::Job, r: &RunRe
     );
 }
 
+/// Runs `job` on `cfg` to its end (every boundary where the design put a material,
+/// the floor no better than the run at its worst straight window), summarised.
+fn run_to_the_end(name: &str, cfg: &Config, job: &dollop_sim::Job) -> RunResult {
+    let r = run(cfg, job);
+    summary(name, &r);
+    assert_floor_below(name, cfg, job, &r);
+    assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
+    assert!(
+        r.metrics.mismatches.is_empty(),
+        "{:?}",
+        r.metrics.mismatches
+    );
+    r
+}
+
 /// Random 0.8 mm cells (a 48 px random pattern's pixels at the default pitch), each cell
 /// paste A or B from a fixed hash: features shorter than the channel, so decisions find
 /// one paste in the channel now and then and several the next time, each sizing its own
@@ -308,15 +315,7 @@ fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
         (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63) as u8
     };
     let cells = job(&fill(16.0, 12, 1), cell);
-    let r = run(&cfg, &cells);
-    summary("random cells/real valves 500", &r);
-    assert_floor_below("random cells/real valves 500", &cfg, &cells, &r);
-    assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{:?}",
-        r.metrics.mismatches
-    );
+    let r = run_to_the_end("random cells/real valves 500", &cfg, &cells);
     // Without the blend: X 540, Y 1 102 mm/s^2. Y met a row end's turn at 14.2 mm/s at
     // 504 mm/s^2 before the head slowed round it (471 now); the slack is the
     // measurement's.
@@ -367,16 +366,7 @@ fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
         i.pressure_kpa = dollop::config::Pressure::Auto;
     }
     let name = "chessboard/shear-thinning pastes, real valves 500";
-    let j = board();
-    let r = run(&cfg, &j);
-    summary(name, &r);
-    assert_floor_below(name, &cfg, &j, &r);
-    assert_eq!(r.state, RunState::Done, "{:?}", r.fault);
-    assert!(
-        r.metrics.mismatches.is_empty(),
-        "{:?}",
-        r.metrics.mismatches
-    );
+    let r = run_to_the_end(name, &cfg, &board());
     let m = cfg.validate::<f64, 4>().unwrap();
     assert_axes_within(name, &m, &r, ACCEL_SLACK);
     let bl = r.metrics.section_band(true);
