@@ -42,14 +42,7 @@ fn assert_part_on(
             section * 100.0
         );
     }
-    for (a, axis) in ["X", "Y"].iter().enumerate() {
-        let limit = m.motion.max_accel[a];
-        assert!(
-            r.axis_accel[a] <= limit * 1.02,
-            "{name}: {axis} accelerated at {:.0} mm/s^2 (1 ms central differences, valve open) over the {limit} limit",
-            r.axis_accel[a]
-        );
-    }
+    common::assert_axes_within(name, &m, r, 1.02);
     assert!(
         r.worst_step_error <= 1.0,
         "{name}: steps {} microsteps off the plan",

@@ -189,6 +189,11 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// window's before any), and the cap (squared, mm^2/s^2) worked out for the fillet
     /// starting at a plan volume with that half (`turns`).
     mean_half: u32,
+    /// Cycles the head holds at a bead's start after a travel that reverses along an
+    /// axis (`drive::travel_cycle`), on machines whose bead starts step the head's speed.
+    start_hold: u32,
+    /// Cycles the travel under way still holds the head before it moves (`end_hold`).
+    travel_hold: u32,
     cap_cache: ((Vol, u32), R),
     /// A bead start's widening of the ramp's mean, put off to this plan cycle
     /// (`sizing::widen_when_due`): (cycle, half window).
@@ -256,6 +261,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             sums: crate::window_sums::WindowSums::new(),
             turn_slow: crate::turn_slow::TurnSlow::off(),
             mean_half: 0,
+            start_hold: 0,
+            travel_hold: 0,
             deferred: None,
             cap_cache: ((Vol::ZERO, 0), R::ZERO),
         }
@@ -318,6 +325,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
         };
         self.turn_slow.reset(a);
         self.mean_half = self.machine.ramp_cycles / 2;
+        self.start_hold = drive::start_hold(&self.machine);
         self.cap_cache = ((Vol(-1), 0), R::ZERO);
         self.hold_ramp();
     }

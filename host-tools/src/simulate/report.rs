@@ -85,6 +85,10 @@ pub fn report_text(
         r.axis_accel[0], r.axis_accel[1], config.motion.max_accel_mm_s2[0], config.motion.max_accel_mm_s2[1]
     ));
     s.push_str(&format!(
+        "  with travels    X {:.0}, Y {:.0} mm/s^2 at most over the whole run (less the f32 position's rounding)\n",
+        r.axis_accel_moving[0], r.axis_accel_moving[1]
+    ));
+    s.push_str(&format!(
         "peak step rate    X {:.0}, Y {:.0}, Z {:.0} steps/s (drivers take {:.0})\n",
         r.peak_step_rate[0], r.peak_step_rate[1], r.peak_step_rate[2], limit
     ));
@@ -144,7 +148,7 @@ pub const ACCEL_SLACK: f64 = 1.02;
 /// What left its bound, as sentences: the bead section over every
 /// `SECTION_WINDOW_MM` of bead against `Machine::section_bound`, the corner acceleration
 /// against the X/Y limit, and each axis's acceleration (1 ms differences while a valve is
-/// open) against its limit. The report
+/// open, then over the whole run) against its limit. The report
 /// prints each after `WARNING:`; the exit status stays 0 (as for a boundary far off:
 /// a fault or a wrong material sequence is what fails a run).
 pub fn warnings(r: &RunResult, config: &Config, bounds: &Bounds) -> Vec<String> {
@@ -177,6 +181,12 @@ pub fn warnings(r: &RunResult, config: &Config, bounds: &Bounds) -> Vec<String> 
             w.push(format!(
                 "{axis} accelerates at {:.0} mm/s^2 (at {:.3} s), over its limit of {limit} mm/s^2",
                 r.axis_accel[a], r.axis_accel_at[a]
+            ));
+        } else if r.axis_accel_moving[a] > limit * ACCEL_SLACK {
+            // The valves shut there: a travel, or a bead's start or end meeting one.
+            w.push(format!(
+                "{axis} accelerates at {:.0} mm/s^2 (at {:.3} s, valves shut), over its limit of {limit} mm/s^2",
+                r.axis_accel_moving[a], r.axis_accel_moving_at[a]
             ));
         }
     }
