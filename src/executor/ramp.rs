@@ -136,7 +136,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 let (sums, ramp) = (&self.sums, &self.ramp);
                 let lead = ramp.half() + 1;
                 let step = ramp.back(lead as usize).dv;
-                self.follow.push(lead, step, || sums.look(ramp));
+                self.follow
+                    .push(lead, step, ramp.back(0).dv, || sums.look(ramp));
                 self.follow_flow();
                 self.ramp.keep_slow();
             });
