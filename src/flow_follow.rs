@@ -538,8 +538,7 @@ impl FlowFollow {
         if c >= first {
             acc.wrapping_add(per.wrapping_mul((c - first) as u32))
         } else {
-            let straight = (self.a / ACC_LSB) as u32;
-            acc.wrapping_sub(straight.wrapping_mul((first - c) as u32))
+            acc.wrapping_sub(self.straight().wrapping_mul((first - c) as u32))
         }
     }
 
