@@ -457,12 +457,12 @@ impl<'a, R: Real> Runner<'a, R> {
             worst_step_error: m.worst_step_error,
             peak_accel: m.peak_accel,
             max_slugs: m.max_slugs,
-            axis_accel: m.axis_accel.peak,
-            axis_accel_at: m.axis_accel.at,
-            axis_accel_moving: m.axis_accel.moving,
-            axis_accel_moving_at: m.axis_accel.moving_at,
-            axis_accel_open_net: m.axis_accel.open_net,
-            axis_accel_open_net_at: m.axis_accel.open_net_at,
+            axis_accel: m.axis_accel.peak.v,
+            axis_accel_at: m.axis_accel.peak.at,
+            axis_accel_moving: m.axis_accel.moving.v,
+            axis_accel_moving_at: m.axis_accel.moving.at,
+            axis_accel_open_net: m.axis_accel.open_net.v,
+            axis_accel_open_net_at: m.axis_accel.open_net.at,
             bead_area: self.bead_area,
             segments: self.job.print_segments(),
             pauses: self.pauser.finish(),
@@ -690,12 +690,25 @@ struct AxisAccel {
     k: usize,
     h: f64,
     hist: std::collections::VecDeque<([f64; 3], bool, f64)>,
-    peak: [f64; 3],
+    peak: Peak,
+    moving: Peak,
+    open_net: Peak,
+}
+
+/// The largest figure per axis so far, and where (s) it was measured.
+#[derive(Default)]
+struct Peak {
+    v: [f64; 3],
     at: [f64; 3],
-    moving: [f64; 3],
-    moving_at: [f64; 3],
-    open_net: [f64; 3],
-    open_net_at: [f64; 3],
+}
+
+impl Peak {
+    fn note(&mut self, a: usize, x: f64, t: f64) {
+        if x > self.v[a] {
+            self.v[a] = x;
+            self.at[a] = t;
+        }
+    }
 }
 
 /// Units in the last place of an f32 position at `x` mm.
@@ -714,12 +727,9 @@ impl AxisAccel {
             k,
             h: k as f64 * dt,
             hist: Default::default(),
-            peak: [0.0; 3],
-            at: [0.0; 3],
-            moving: [0.0; 3],
-            moving_at: [0.0; 3],
-            open_net: [0.0; 3],
-            open_net_at: [0.0; 3],
+            peak: Peak::default(),
+            moving: Peak::default(),
+            open_net: Peak::default(),
         }
     }
     fn cycle(&mut self, pos: [f64; 3], valve_open: bool, t: f64) {
@@ -732,21 +742,16 @@ impl AxisAccel {
             let h2 = self.h * self.h;
             for a in 0..3 {
                 let acc = ((p2[a] - 2.0 * p1.0[a] + p0[a]) / h2).abs();
-                if p1.1 && acc > self.peak[a] {
-                    self.peak[a] = acc;
-                    self.at[a] = p1.2;
+                if p1.1 {
+                    self.peak.note(a, acc, p1.2);
                 }
                 // Each position rounded to half a unit, and the arithmetic before it: four
                 // units over the three, the largest of them.
                 let far = p0[a].abs().max(p1.0[a].abs()).max(p2[a].abs());
                 let net = acc - 4.0 * f32_ulp(far) / h2;
-                if net > self.moving[a] {
-                    self.moving[a] = net;
-                    self.moving_at[a] = p1.2;
-                }
-                if p1.1 && net > self.open_net[a] {
-                    self.open_net[a] = net;
-                    self.open_net_at[a] = p1.2;
+                self.moving.note(a, net, p1.2);
+                if p1.1 {
+                    self.open_net.note(a, net, p1.2);
                 }
             }
         }
@@ -769,9 +774,10 @@ mod tests {
             let x = (115.0 + 10.0 * t - 240.0 * t * t) as f32 as f64;
             m.cycle([x, 0.0, 0.0], i < 1000, t);
         }
-        assert!(m.peak[0] > 480.0, "{}", m.peak[0]);
-        assert!(m.open_net[0] <= 480.0 + 1e-6, "{}", m.open_net[0]);
-        assert!(m.moving[0] <= 480.0 + 1e-6, "{}", m.moving[0]);
-        assert!(m.open_net[0] > 440.0 && m.moving[0] >= m.open_net[0]);
+        let (raw, open, moving) = (m.peak.v[0], m.open_net.v[0], m.moving.v[0]);
+        assert!(raw > 480.0, "{raw}");
+        assert!(open <= 480.0 + 1e-6, "{open}");
+        assert!(moving <= 480.0 + 1e-6, "{moving}");
+        assert!(open > 440.0 && moving >= open);
     }
 }
