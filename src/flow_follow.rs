@@ -63,8 +63,9 @@ const RETURN_FRAMES: f32 = 100.0;
 /// limit: short, as the mean's moves are taken to a fraction of a unit.
 const TURN_FRAMES: f32 = 4.0;
 
-/// The whole X/Y limit over the ramps' share (`config::RAMP_SHARE`).
-const WHOLE: f32 = 1.0 / crate::config::RAMP_SHARE as f32;
+/// The ramps' share of the X/Y limit (`config::RAMP_SHARE`): what the head's speed
+/// changes by once its bead ends, and what the settling is judged against.
+const RAMPS: f32 = crate::config::RAMP_SHARE as f32;
 /// Most the lag's return adds to the head's speed, relative: what it lays off the section.
 const RETURN_SHARE: f32 = 0.01;
 
@@ -72,17 +73,28 @@ const RETURN_SHARE: f32 = 0.01;
 /// those since the follower started); fewer, and the mean's speed is taken as the flow's.
 const MIN_COUNTED: u32 = 8;
 
-/// Share of the ramps' limit the head may always slow by, whatever its turn leaves.
-const SLOW_FLOOR: f32 = 0.25;
+/// Share of the whole limit the head may always slow by, whatever its turn leaves (a
+/// quarter of the ramps' share).
+const SLOW_FLOOR: f32 = 0.25 * RAMPS;
 
-/// The whole limit the follower plans by, relative: what its estimate of the head's turn
-/// (the mean's direction over `TURN_FRAMES`) misses. At 500 mm/s^2 with the whole limit:
-/// the stripes' X 511 mm/s^2, the random pattern's 526; with 0.95, 483 and 504; with 0.9,
-/// 458 and 496 but the random cells' section 1.5 points further off through turns.
+/// What the follower's estimate of the head's turn (the mean's direction over
+/// `TURN_FRAMES`) misses, relative: the turn is taken `1 / MARGIN` as large, and a turn's
+/// cap on the speed aims within `MARGIN` of the whole limit. At 500 mm/s^2 with the
+/// whole limit: the stripes' X 511 mm/s^2, the random pattern's 526; with 0.95, 483 and
+/// 504; with 0.9, 458 and 496 but the random cells' section 1.5 points further off
+/// through turns. It was once taken off the whole limit, the straights' too (`STRAIGHT`).
 const MARGIN: f32 = 0.95;
 
 /// Most the head's speed over the mean's counts, squared, in the head's turn (`steer`).
 const AHEAD_MOST: f32 = 2.0;
+
+/// Share of the whole limit the head's speed changes by on a straight (`FlowFollow::slew`):
+/// the rest is for what the head's placing adds (a lag on the trail's chords). On the
+/// food pastes' 4 mm board at 500 mm/s^2, X from 1 ms differences less the f32 position's
+/// rounding: 494 mm/s^2 at 0.99, 502 at 1.0.
+const STRAIGHT: f32 = 0.99;
+// Past the turns' margin, within the whole limit.
+const _: () = assert!(STRAIGHT > MARGIN && STRAIGHT <= 1.0);
 
 /// In a turn the head aims no faster than this share of the way from the mean's speed to
 /// the speed at which the turn alone takes the limit (the stripes' X: 507 mm/s^2 at the
@@ -223,7 +235,7 @@ pub struct FlowFollow {
     cursor: u32,
     /// Frames from the outputs' to the newest.
     half: i32,
-    /// The limit, position units a frame squared.
+    /// The whole X/Y limit, position units a frame squared.
     a: f32,
     /// Position units a frame per volume unit a frame (1 / bead section).
     per_dv: f32,
@@ -280,8 +292,8 @@ impl FlowFollow {
         }
     }
 
-    /// Off, for a ring whose outputs are `half` frames behind its newest and a limit of
-    /// `a` position units a frame squared (0: never on).
+    /// Off, for a ring whose outputs are `half` frames behind its newest and an X/Y limit
+    /// of `a` position units a frame squared (the whole one; 0: never on).
     pub fn reset(&mut self, half: u32, a: f32) {
         self.active = false;
         self.half = half.min(QUEUE as u32 * BLOCK as u32) as i32;
@@ -378,10 +390,11 @@ impl FlowFollow {
         let k = self.frames;
         let v = dv as f32 * self.per_dv;
         let (first, lo, n) = self.ahead_block;
+        let slew = self.straight_slew();
         self.ahead_block = if n == 0 {
             (k, v, 1)
         } else {
-            (first, min(lo, v + self.a * (k - first) as f32), n + 1)
+            (first, min(lo, v + slew * (k - first) as f32), n + 1)
         };
         if self.ahead_block.2 == BLOCK {
             let (first, lo, _) = self.ahead_block;
@@ -393,7 +406,12 @@ impl FlowFollow {
 
     /// A straight frame's budget, `ACC_LSB` units.
     fn straight(&self) -> u32 {
-        (self.a / ACC_LSB) as u32
+        (self.straight_slew() / ACC_LSB) as u32
+    }
+
+    /// The speed's change a frame on a straight: `STRAIGHT` of the whole limit.
+    fn straight_slew(&self) -> f32 {
+        STRAIGHT * self.a
     }
 
     /// The mean's speed over the plan's, and the speed change its turn leaves, where
@@ -422,11 +440,17 @@ impl FlowFollow {
         } else {
             0.0
         };
-        let whole = self.a * WHOLE * MARGIN;
-        self.budget = min(
-            libm::sqrtf(max(whole * whole - across * across, 0.0)),
-            self.a,
-        );
+        self.budget = self.slew(across * across);
+    }
+
+    /// The speed's change a frame the head's turn (`turn2`, its acceleration across the
+    /// path squared, units a frame squared) leaves of `STRAIGHT` of the whole limit, by the
+    /// vector sum, the turn taken `1 / MARGIN` as large. Taken within `MARGIN` of the whole
+    /// limit instead (the margin the turns need), a fall on a straight was met at 0.95 of
+    /// the limit and the lag it built spread over the bead past it.
+    fn slew(&self, turn2: f32) -> f32 {
+        let top = self.straight_slew();
+        libm::sqrtf(max(top * top - turn2 / (MARGIN * MARGIN), 0.0))
     }
 
     /// What to add to the mean the outputs show (the newest frame's X/Y `base`, units, and
@@ -479,7 +503,7 @@ impl FlowFollow {
         let (tx, ty) = (self.heading[0] - before[0], self.heading[1] - before[1]);
         let turn2 = tx * tx + ty * ty;
         let (lo, hi) = self.bounds(v);
-        let a = self.a;
+        let a = self.a * RAMPS;
         if printing {
             self.steer(lo, hi, vm, d2, turn2);
         } else {
@@ -549,7 +573,7 @@ impl FlowFollow {
     /// mean's path is `v`: the latest slowing that meets the flow ahead and the lowest
     /// speed from which it can (the envelopes), and the causal ones.
     fn bounds(&mut self, v: f32) -> (f32, f32) {
-        let a = self.a;
+        let a = self.straight_slew();
         let c = self.frames - self.half;
         let acc_c = self.acc_at(c);
         let low = self.low.at(c, acc_c, true).map_or(v, |x| min(x, v));
@@ -572,12 +596,12 @@ impl FlowFollow {
 
     /// The head's speed for this frame, aiming between `lo` and `hi`, on the mean's path
     /// (speed `vm`, `d2` its square, turning by `turn2` squared a frame). The speed's
-    /// change gets what the head's turn leaves of the whole limit (less `MARGIN`), by the
-    /// vector sum; it may always slow by `SLOW_FLOOR` of the ramps' share; and in a turn
-    /// it aims no faster than halfway from the mean's speed to the speed at which the
-    /// turn alone takes the whole limit.
+    /// change gets what the head's turn leaves of the whole limit (`slew`); it may always
+    /// slow by `SLOW_FLOOR` of it; and in a turn it aims no faster than halfway from the
+    /// mean's speed to the speed at which the turn alone takes `MARGIN` of the whole
+    /// limit.
     fn steer(&mut self, lo: f32, hi: f32, vm: f32, d2: f32, turn2: f32) {
-        let whole = self.a * WHOLE * MARGIN;
+        let whole = self.a * MARGIN;
         // The head's turn: the mean's at the head's speed (the same path), the speed's
         // share counted at most `AHEAD_MOST` times (a head far ahead is brought back by
         // the floor on slowing, not frozen: counted in full, it froze at 10.3 mm/s on the
@@ -587,12 +611,7 @@ impl FlowFollow {
         } else {
             1.0
         };
-        let left = whole * whole - d2 * turn2 * r2 * r2;
-        let slew = if left > self.a * self.a {
-            self.a
-        } else {
-            libm::sqrtf(max(left, 0.0))
-        };
+        let slew = self.slew(d2 * turn2 * r2 * r2);
         // `min`/`max`, not `clamp`: it panics on NaN bounds, and its message would pull
         // float formatting into the tick.
         let back = max(
@@ -878,7 +897,7 @@ mod tests {
             f.push(lead(k), units(v(at)), units(v(k)), || straight(v(at)));
             let (lo, _) = f.bounds(v(c));
             let exact = (c..=k)
-                .map(|j| v(j) + a * (j - c) as f32)
+                .map(|j| v(j) + STRAIGHT * a * (j - c) as f32)
                 .fold(v(c), f32::min);
             worst = worst.min(lo - exact);
             assert!(
@@ -887,6 +906,30 @@ mod tests {
             );
         }
         assert!(worst > -1.0e-3, "{worst} below the latest slowing");
+    }
+
+    /// The speed's change a frame: on a straight `STRAIGHT` of the whole limit (0.95 of
+    /// it, the turns' margin, before: the food pastes' band at 500 mm/s^2 0.0209 where it
+    /// is 0.0170 now); with a turn, what the turn taken `1 / MARGIN` as large leaves by the
+    /// vector sum, never more than the whole limit less the turn; nothing once the turn
+    /// takes `MARGIN` of it.
+    #[test]
+    fn a_straight_changes_speed_by_the_whole_limit_a_turn_by_what_it_leaves() {
+        let a = 0.05f32;
+        let mut f = FlowFollow::new();
+        f.reset(200, a);
+        assert!((f.slew(0.0) - STRAIGHT * a).abs() < 1.0e-7);
+        for k in 1..20 {
+            let turn = a * MARGIN * k as f32 / 20.0;
+            let s = f.slew(turn * turn);
+            assert!(s > 0.0 && s < libm::sqrtf(a * a - turn * turn), "{k}: {s}");
+        }
+        let tight = a * MARGIN * STRAIGHT;
+        assert!(
+            f.slew(tight * tight) < 1.0e-3 * a,
+            "{}",
+            f.slew(tight * tight)
+        );
     }
 
     /// A frame of the straight path at `v` whose mean turns there at `across` units a
@@ -910,7 +953,7 @@ mod tests {
             let mut f = FlowFollow::new();
             f.reset(200, a);
             f.start(1.0e-3);
-            let across = if tight { a * WHOLE * MARGIN } else { 0.0 };
+            let across = if tight { a * MARGIN } else { 0.0 };
             let look = |k: usize| {
                 let dv = (v(k) * 1000.0) as i32;
                 let l = if (1000..1100).contains(&k) {

@@ -103,8 +103,9 @@ fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
 /// the mean stays on the mean's path (`dollop::follow_trail`). The axes keep their limit;
 /// the section keeps 1 % away from turns but for a tenth of a point, and not through the
 /// row ends' turns: measured 1.07 % off over 0.2 mm away from turns and 13.4 % through
-/// them, X 486 Y 458 mm/s^2, worst boundary 0.008 mm. Before a bead's start put off
-/// widening its window for the turns far ahead (`dollop::switch_window`'s
+/// them, X 502 Y 463 mm/s^2 (X within 500 less the f32 position's rounding; 484 with the
+/// follower's straights at 0.95 of the limit), worst boundary 0.008 mm. Before a bead's
+/// start put off widening its window for the turns far ahead (`dollop::switch_window`'s
 /// `Sizing::defer`), the first bead's start was 4.7 % off (the head led the paste by half
 /// the machine's window) and the worst boundary 0.011 mm. With the follower barred near
 /// the turns and a window sized from the contents there: 9.0 and 21.8 %, X 481 Y 305,
@@ -119,13 +120,16 @@ fn real_valves_at_500_keep_the_limit_and_the_known_section_cost_on_short_feature
     let j = job(&f, stripes(0.6));
     let r = run_to_the_end("short features/real valves 500", &cfg, &j);
     assert!(r.metrics.worst_boundary() <= 0.02);
+    // The head itself within the limit (the differences less what the f32 position's
+    // rounding can put in them); the raw differences within the measurement's slack.
     for a in 0..2 {
         assert!(
-            r.axis_accel[a] <= 500.0,
+            r.axis_accel_open_net[a] <= 500.0,
             "axis {a}: {} at {} s",
-            r.axis_accel[a],
-            r.axis_accel_at[a]
+            r.axis_accel_open_net[a],
+            r.axis_accel_open_net_at[a]
         );
+        assert!(r.axis_accel[a] <= 500.0 * ACCEL_SLACK, "axis {a}");
     }
     let section = r.metrics.worst_section_long();
     assert!(
@@ -348,13 +352,14 @@ fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
 /// asked for a 4.7 ms window, and the head, riding the flow, braked at 839 mm/s^2 on X
 /// here (862 on the chessboard PNG). The window now counts the paste's own fall
 /// (`config::flow`'s `Decay`), the follower takes every change of such pastes
-/// (`switch_window`), and the ring holds the whole drop ahead of it. Measured: X 484,
-/// Y 254 mm/s^2; band p99 - p1 over 0.2 mm 0.0209, just over the 0.02 for its own
-/// scenarios; 2.78 % off over 0.2 mm of straight bead, where the floor allows 1.75 % in
-/// its measure (the run 2.90 %): the follower's aim eases into the fall and out of it
-/// where the best head runs ahead first and undershoots the flow at the bottom. Worst
-/// boundary 0.0035 mm. With the machine's window instead of the follower: band 0.066 on
-/// the chessboard PNG.
+/// (`switch_window`), and the ring holds the whole drop ahead of it. Measured: X 504
+/// (494 less the f32 position's rounding), Y 254 mm/s^2; band p99 - p1 over 0.2 mm
+/// 0.0169, within the 0.02; 2.39 % off over 0.2 mm of straight bead, where the
+/// floor allows 1.75 % in its measure: the follower's aim eases into the fall and out of
+/// it where the best head runs ahead first and undershoots the flow at the bottom. Worst
+/// boundary 0.0035 mm. With the follower's speed changing by 0.95 of the limit on a
+/// straight (the margin its turns take): X 484, band 0.0209, 2.78 %. With the machine's
+/// window instead of the follower: band 0.066 on the chessboard PNG.
 #[test]
 fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
     let mut cfg = soft(500.0, false);
@@ -375,8 +380,8 @@ fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
         bl.1 - bl.0,
         r.metrics.worst_section_straight() * 100.0
     );
-    assert!(bl.1 - bl.0 <= 0.025, "{name}: band over 0.2 mm {bl:?}");
-    assert!(r.metrics.worst_section_straight() <= 0.03);
+    assert!(bl.1 - bl.0 <= BAND_500, "{name}: band over 0.2 mm {bl:?}");
+    assert!(r.metrics.worst_section_straight() <= 0.026);
     assert!(
         r.metrics.worst_boundary() <= 0.02,
         "{}",

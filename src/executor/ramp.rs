@@ -23,11 +23,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let per_unit = crate::ramp::frames_per_unit(step_ramp_accel(m), m.dt().to_f32());
             self.ramp
                 .reset(m.ramp_cycles, f, &mut self.step_ramps, per_unit);
-            // The follower of a mixed channel's flow: the ramps' share of the X/Y limit
-            // in position units a frame squared.
+            // The follower of a mixed channel's flow: the whole X/Y limit in position
+            // units a frame squared (it shares it with the head's turn itself).
             let dt = m.dt().to_f32();
-            let a = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32()
-                * crate::config::RAMP_SHARE as f32;
+            let a = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32();
             self.follow.reset(m.ramp_cycles / 2, a * dt * dt * 1.0e4);
         }
     }
