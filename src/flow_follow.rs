@@ -4,13 +4,14 @@
 //! 1 124 mm/s^2 at the kink), and a centred box mean within the limit must be as wide as
 //! the change is large (24 ms on the fine features at 500 mm/s^2): it spreads the head's
 //! ramp over the change and its own width, 8 % off the section over 0.2 mm. This head
-//! speed `u` changes by at most `a` a frame and aims between the highest speed from which
-//! the head can still meet the flow ahead (a sliding minimum over the frames the ring
-//! holds past the outputs') and the lowest from which it can, so that it starts slowing
-//! as late as the limit allows and meets the flow where the flow's own change drops
-//! within it; the lag `e` it builds returns at most 1 % of the speed (what that lays off
-//! the section). Offline on the fine features' worst stretch this took the section from
-//! 7.9 % off to 1.7 % at 475 mm/s^2; in the executor, 1.8 % away from turns.
+//! speed `u` changes by at most `STRAIGHT` of the limit `a` a frame and aims between the
+//! highest speed from which the head can still meet the flow ahead (a sliding minimum
+//! over the frames the ring holds past the outputs') and the lowest from which it can,
+//! so that it starts slowing as late as the limit allows and meets the flow where the
+//! flow's own change drops within it; the lag `e` it builds returns at most 1 % of the
+//! speed (what that lays off the section). Offline on the fine features' worst stretch
+//! this took the section from 7.9 % off to 1.7 % at 475 mm/s^2; in the executor, 1.8 %
+//! away from turns.
 //!
 //! Turns: the speed it aims at is the flow's on the mean's path (a window over a turn
 //! cuts the corner and slows there with the flow steady), planned by the mean's own path
@@ -910,11 +911,11 @@ mod tests {
 
     /// The speed's change a frame: on a straight `STRAIGHT` of the whole limit (0.95 of
     /// it, the turns' margin, before: the food pastes' band at 500 mm/s^2 0.0209 where it
-    /// is 0.0170 now); with a turn, what the turn taken `1 / MARGIN` as large leaves by the
+    /// is 0.0169 now); with a turn, what the turn taken `1 / MARGIN` as large leaves by the
     /// vector sum, never more than the whole limit less the turn; nothing once the turn
     /// takes `MARGIN` of it.
     #[test]
-    fn a_straight_changes_speed_by_the_whole_limit_a_turn_by_what_it_leaves() {
+    fn a_straight_takes_its_share_of_the_whole_limit_a_turn_what_it_leaves() {
         let a = 0.05f32;
         let mut f = FlowFollow::new();
         f.reset(200, a);
