@@ -120,6 +120,8 @@ pub struct Metrics {
     pub section_samples: Vec<f64>,
     /// Every cross-section / S over `SECTION_LONG_MM`, as `section_samples`.
     pub section_long_samples: Vec<f64>,
+    /// Those of `section_long_samples` away from turns (`section_straight_range`'s).
+    pub section_straight_samples: Vec<f64>,
     /// Changes of section between two print segments of one bead met (job format 2's
     /// mid-bead `Command::Section`, issue 26): the head's speed changes there at constant
     /// flow over its own ramp, and the long windows that come within `Meter::step_reach`
@@ -169,6 +171,15 @@ impl Metrics {
         } else {
             &self.section_samples
         };
+        (percentile(v, 0.01), percentile(v, 0.99))
+    }
+
+    /// As `section_band(true)`, over the 0.2 mm windows away from turns only (the
+    /// heading within `STRAIGHT_DEG`): the issue's "away from bead ends and turns". The
+    /// band over every window counts the row ends' U-turns too, where the head's
+    /// slowing for the fillet meets the flow's change.
+    pub fn section_band_straight(&self) -> (f64, f64) {
+        let v = &self.section_straight_samples;
         (percentile(v, 0.01), percentile(v, 0.99))
     }
 }
@@ -534,6 +545,7 @@ impl Meter {
                     self.metrics.section_straight_worst_cycle = self.cycles - 1;
                 }
                 self.metrics.section_straight_range = (lo.min(ratio), hi.max(ratio));
+                self.metrics.section_straight_samples.push(ratio);
             }
         }
     }

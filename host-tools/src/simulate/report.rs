@@ -72,13 +72,18 @@ pub fn report_text(
         dollop::config::SECTION_WINDOW_MM,
         dollop_sim::metrics::STRAIGHT_DEG
     ));
-    let (b, bl) = (m.section_band(false), m.section_band(true));
+    let (b, bl, bs) = (
+        m.section_band(false),
+        m.section_band(true),
+        m.section_band_straight(),
+    );
     s.push_str(&format!(
-        "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} over 0.2 mm\n",
+        "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} over 0.2 mm, {:.4} away from turns\n",
         b.1 - b.0,
         b.0,
         b.1,
-        bl.1 - bl.0
+        bl.1 - bl.0,
+        bs.1 - bs.0
     ));
     s.push_str(&format!(
         "axis accel        X {:.0}, Y {:.0} mm/s^2 at most while a valve is open (1 ms differences; limits X {}, Y {})\n",
