@@ -231,6 +231,11 @@ pub struct Inlet<R> {
     pub law: FlowLaw<R>,
     /// Supply pressure, Pa.
     pub supply_pa: R,
+    /// The head's speed with the channel full of this inlet's paste at its supply, mm/s
+    /// (0 for a syringe): where a bead of it runs once the channel has flushed. Worked
+    /// out here, as a shear-thinning paste's is a power of the pressure (software `powf`
+    /// in a sizing step on the chip).
+    pub flushed_mm_s: R,
     /// Valve open dead time, s.
     pub open_delay_s: R,
     /// Valve close dead time, s.
@@ -612,6 +617,22 @@ mod tests {
         assert!((q / m.bead_area - 10.0).abs() < 1e-4, "{}", q / m.bead_area);
         // B's higher pressure through a channel full of A: 10 * 3.17 / 1.41.
         assert!((m.v_flow_max - 10.0 * 3.17 / 1.41).abs() < 1e-3);
+        // Each paste through a channel full of itself: the print speed, its flushed one.
+        for i in &m.inlets {
+            assert!((i.flushed_mm_s - 10.0).abs() < 1e-9, "{}", i.flushed_mm_s);
+        }
+        // A shear-thinning paste's too, and a given pressure's by its own power: the food
+        // pastes at 1.5 times mashed potato's auto pressure run 1.5^(1 / 0.6) as fast.
+        let mut c: Config = toml::from_str(include_str!("../configs/food-pastes.toml")).unwrap();
+        let m: Machine<f64, 4> = c.clone().validate().unwrap();
+        for i in &m.inlets {
+            assert!((i.flushed_mm_s - 10.0).abs() < 1e-9, "{}", i.flushed_mm_s);
+        }
+        let kpa = m.inlets[0].supply_pa * 1.5e-3;
+        c.inlets[0].pressure_kpa = Pressure::Kpa(kpa as f32);
+        let v = c.validate::<f64, 4>().unwrap().inlets[0].flushed_mm_s;
+        let want = 10.0 * libm::pow(kpa as f32 as f64 / (kpa / 1.5), 1.0 / 0.6);
+        assert!((v - want).abs() < 1e-6 * want, "{v} against {want}");
     }
 
     #[test]

@@ -157,7 +157,7 @@ fn valve_flow_max(
 
 /// Flow through a channel full of one material at pressure `p_pa`, mm^3/s (f64: used at
 /// validation time only).
-fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
+pub(super) fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
     let per_vol = p_pa / v_channel_mm3;
     if per_vol <= law.b {
         return 0.0;

@@ -69,9 +69,15 @@ pub(super) fn check<R: Real, const N: usize>(
         let rise = ic.range("pressure_rise_ms", inlet.pressure_rise_ms, 0.0, 5000.0)?;
         let decay = ic.range("pressure_decay_ms", inlet.pressure_decay_ms, 0.0, 5000.0)?;
         let _ = supplies.push(supply_pa);
+        let flushed = if syringe.is_some() {
+            0.0
+        } else {
+            super::flow::flow_full(&laws[i], supply_pa, cx.v_channel) / cx.s
+        };
         let _ = inlets.push(Inlet {
             law: FlowLaw::new(&inlet.rheology, cx.d),
             supply_pa: R::of(supply_pa),
+            flushed_mm_s: R::of(flushed),
             open_delay_s: R::of(open as f64 * 1e-3),
             close_delay_s: R::of(close as f64 * 1e-3),
             rise_s: R::of(rise as f64 * 1e-3),
