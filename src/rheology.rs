@@ -99,6 +99,18 @@ impl<R: Real> FlowLaw<R> {
     }
 }
 
+impl FlowLaw<f64> {
+    /// Flow through a channel of `v_channel_mm3` full of this material at pressure `p_pa`,
+    /// mm^3/s: `drop_per_volume`'s inverse (f64: at a config's validation only).
+    pub fn flow_full(&self, p_pa: f64, v_channel_mm3: f64) -> f64 {
+        let per_vol = p_pa / v_channel_mm3;
+        if per_vol <= self.b {
+            return 0.0;
+        }
+        libm::pow((per_vol - self.b) / self.a, 1.0 / self.n)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -138,5 +150,36 @@ mod tests {
             1.2,
         );
         assert!((a.a - b.a).abs() / a.a < 1e-12);
+    }
+
+    /// A full channel's flow is the pressure drop's inverse, a yield stress's plug
+    /// included; under the yield stress nothing flows.
+    #[test]
+    fn a_full_channels_flow_inverts_the_drop() {
+        let v_channel = 1.2;
+        for r in [
+            Rheology::Newtonian {
+                viscosity_pa_s: 1.41,
+            },
+            Rheology::PowerLaw {
+                consistency_pa_sn: 120.0,
+                flow_index: 0.45,
+            },
+            Rheology::HerschelBulkley {
+                yield_stress_pa: 40.0,
+                consistency_pa_sn: 60.0,
+                flow_index: 0.6,
+            },
+        ] {
+            let law: FlowLaw<f64> = FlowLaw::new(&r, 0.8);
+            for q in [0.5, 4.8, 20.0] {
+                let p = law.drop_per_volume(q) * v_channel;
+                let back = law.flow_full(p, v_channel);
+                assert!((back - q).abs() < 1e-9 * q, "{r:?}: {q} -> {back}");
+            }
+            if law.b > 0.0 {
+                assert_eq!(law.flow_full(0.5 * law.b * v_channel, v_channel), 0.0);
+            }
+        }
     }
 }

@@ -276,14 +276,12 @@ pub fn switch_start<R: Real, const N: usize>(
         d.max(i.open_delay_s.max(i.close_delay_s).to_f32())
     });
     let v = v_o.max(v_c);
-    // At the fastest flow instead (10.63 mm/s for the food pastes), a U-turn of 0.22 mm
-    // fillets took a 45 ms window on the food pastes' logo at 500 mm/s^2, and its box
-    // mean cut the turn with the flow steady: 4.03 % off over 0.2 mm of a crop, none now.
-    let flush = if linear {
-        flushed(model, open, s)
-    } else {
-        open.map(|o| o.flushed_mm_s.to_f32()).filter(|&v| v > 0.0)
-    };
+    // The opening paste's supply through a channel full of it (`Inlet::flushed_mm_s`),
+    // a shear-thinning one's too: at the fastest flow instead (10.63 mm/s for the food
+    // pastes), a U-turn of 0.22 mm fillets took a 45 ms window on the food pastes' logo at
+    // 500 mm/s^2, and its box mean cut the turn with the flow steady: 4.03 % off over
+    // 0.2 mm of a crop, none now.
+    let flush = open.map(|o| o.flushed_mm_s.to_f32()).filter(|&v| v > 0.0);
     // Several pastes in the channel: the follower's (`Sizing::begin_follow`).
     let mixed = model.channel().len() > 1 || !linear;
     // Past the channel's flush the head moves at the opening paste's own speed through a
@@ -328,25 +326,6 @@ pub fn switch_start<R: Real, const N: usize>(
         defer,
         soon,
     })
-}
-
-/// The head's speed with the channel full of the opening paste `open` (mm/s, bead section
-/// `s`): its supply through the channel's whole content at that paste's resistance. None
-/// with no paste opening, or an empty channel.
-fn flushed<R: Real, const N: usize>(
-    model: &FlowModel<R, N>,
-    open: Option<&crate::config::Inlet<R>>,
-    s: f32,
-) -> Option<f32> {
-    let total: f32 = model
-        .channel()
-        .in_channel()
-        .iter()
-        .map(|x| x.mm3::<f32>())
-        .sum();
-    let inlet = open?;
-    let a = inlet.law.a.to_f32() * total;
-    (a > 0.0).then(|| inlet.supply_pa.to_f32() / a / s)
 }
 
 /// A fillet of the bead ahead: `radius` mm, turning the head from unit `from` to unit

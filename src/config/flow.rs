@@ -145,7 +145,7 @@ fn valve_flow_max(
     let mut worst = (0u8, 0u8);
     for (i, &p) in supplies.iter().enumerate() {
         for (j, law) in laws.iter().enumerate() {
-            let v = flow_full(law, p, v_channel) / s;
+            let v = law.flow_full(p, v_channel) / s;
             if v > v_flow_max {
                 v_flow_max = v;
                 worst = (i as u8, j as u8);
@@ -153,16 +153,6 @@ fn valve_flow_max(
         }
     }
     (v_flow_max, worst)
-}
-
-/// Flow through a channel full of one material at pressure `p_pa`, mm^3/s (f64: used at
-/// validation time only).
-pub(super) fn flow_full(law: &FlowLaw<f64>, p_pa: f64, v_channel_mm3: f64) -> f64 {
-    let per_vol = p_pa / v_channel_mm3;
-    if per_vol <= law.b {
-        return 0.0;
-    }
-    libm::pow((per_vol - law.b) / law.a, 1.0 / law.n)
 }
 
 /// What the flow asks of the head: the largest change of head speed faster than the X/Y
@@ -293,7 +283,7 @@ fn valve_steps<R: Real, const N: usize>(
     let mut d = FlowDemand::default();
     for law in laws.iter() {
         for (j, &pj) in supplies.iter().enumerate() {
-            let vj = flow_full(law, pj, v_channel) / s;
+            let vj = law.flow_full(pj, v_channel) / s;
             let (rise_j, decay_j) = (inlets[j].rise_s.to_f64(), inlets[j].decay_s.to_f64());
             // A rise through a shear-thinning paste starts slower than the pressure and
             // never changes faster than its own first-order curve: taken as that.
@@ -303,7 +293,7 @@ fn valve_steps<R: Real, const N: usize>(
                 if i == j {
                     continue;
                 }
-                let vi = flow_full(law, pi, v_channel) / s;
+                let vi = law.flow_full(pi, v_channel) / s;
                 let closing = Decay::new(law, pi, v_channel, inlets[i].decay_s.to_f64(), vi);
                 // Both lines move during a switch; the faster bounds the junction.
                 if vj / rise_j.max(1e-30) > closing.slope() {

@@ -72,7 +72,7 @@ pub(super) fn check<R: Real, const N: usize>(
         let flushed = if syringe.is_some() {
             0.0
         } else {
-            super::flow::flow_full(&laws[i], supply_pa, cx.v_channel) / cx.s
+            laws[i].flow_full(supply_pa, cx.v_channel) / cx.s
         };
         let _ = inlets.push(Inlet {
             law: FlowLaw::new(&inlet.rheology, cx.d),
