@@ -39,6 +39,19 @@ fn soft(a: f32, instant: bool) -> Config {
     c
 }
 
+/// `c` with the food pastes' shear-thinning laws (`configs/food-pastes.toml`: mashed
+/// potato n 0.6, chocolate n 0.45) at `auto` pressure.
+fn shear_thinning(mut c: Config) -> Config {
+    for (i, (k, n)) in c.inlets.iter_mut().zip([(60.0, 0.6), (120.0, 0.45)]) {
+        i.rheology = dollop::rheology::Rheology::PowerLaw {
+            consistency_pa_sn: k,
+            flow_index: n,
+        };
+        i.pressure_kpa = dollop::config::Pressure::Auto;
+    }
+    c
+}
+
 /// Checks a run against the machine's bounds; returns (section off over 0.2 mm, its
 /// bound, X and Y peak acceleration).
 fn assert_soft(name: &str, cfg: &Config, r: &RunResult) -> (f64, f64, f64, f64) {
@@ -362,14 +375,7 @@ fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
 /// window instead of the follower: band 0.066 on the chessboard PNG.
 #[test]
 fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
-    let mut cfg = soft(500.0, false);
-    for (i, (k, n)) in cfg.inlets.iter_mut().zip([(60.0, 0.6), (120.0, 0.45)]) {
-        i.rheology = dollop::rheology::Rheology::PowerLaw {
-            consistency_pa_sn: k,
-            flow_index: n,
-        };
-        i.pressure_kpa = dollop::config::Pressure::Auto;
-    }
+    let cfg = shear_thinning(soft(500.0, false));
     let name = "chessboard/shear-thinning pastes, real valves 500";
     let r = run_to_the_end(name, &cfg, &board());
     let m = cfg.validate::<f64, 4>().unwrap();
@@ -400,14 +406,7 @@ fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
 /// out of one.
 #[test]
 fn a_shear_thinning_bead_keeps_its_section_through_tight_u_turns() {
-    let mut cfg = soft(500.0, false);
-    for (i, (k, n)) in cfg.inlets.iter_mut().zip([(60.0, 0.6), (120.0, 0.45)]) {
-        i.rheology = dollop::rheology::Rheology::PowerLaw {
-            consistency_pa_sn: k,
-            flow_index: n,
-        };
-        i.pressure_kpa = dollop::config::Pressure::Auto;
-    }
+    let cfg = shear_thinning(soft(500.0, false));
     let f = dollop_sim::designs::Fill {
         pitch_mm: 0.44,
         ..fill(6.0, 12, 1)
