@@ -171,7 +171,7 @@ impl Metrics {
         } else {
             &self.section_samples
         };
-        (percentile(v, 0.01), percentile(v, 0.99))
+        band(v)
     }
 
     /// As `section_band(true)`, over the 0.2 mm windows away from turns only (the
@@ -179,20 +179,19 @@ impl Metrics {
     /// band over every window counts the row ends' U-turns too, where the head's
     /// slowing for the fillet meets the flow's change.
     pub fn section_band_straight(&self) -> (f64, f64) {
-        let v = &self.section_straight_samples;
-        (percentile(v, 0.01), percentile(v, 0.99))
+        band(&self.section_straight_samples)
     }
 }
 
-/// The `q` quantile of `v` (nearest rank; 1 for an empty `v`).
-fn percentile(v: &[f64], q: f64) -> f64 {
+/// The p1 and p99 of `v` (nearest rank; 1 for an empty `v`), sorted once.
+fn band(v: &[f64]) -> (f64, f64) {
     if v.is_empty() {
-        return 1.0;
+        return (1.0, 1.0);
     }
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
-    let i = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1;
-    s[i]
+    let at = |q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+    (at(0.01), at(0.99))
 }
 
 /// Path length over which one cross-section value is taken, mm. Per-cycle steps are
