@@ -34,7 +34,7 @@ fn main() {
     // Issue 22's soft machine (real valves, X/Y at 500 mm/s^2): the channel holds 2.5 mm of
     // bead, so every switch of the 1 mm board meets several pastes in it and the flow's
     // follower (`dollop::flow_follow`) bends the head.
-    let path = root.join("host-tools/tests/data/soft-real-valves.toml");
+    let path = root.join("configs/soft-real-valves.toml");
     println!("cargo:rerun-if-changed={}", path.display());
     let mut cfg: dollop::Config = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     cfg.motion.max_accel_mm_s2[0] = 500.0;

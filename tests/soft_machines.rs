@@ -21,7 +21,7 @@ const ACCEL_SLACK: f64 = 1.02;
 /// limit `a`, its valves made instantaneous if `instant`.
 fn soft(a: f32, instant: bool) -> Config {
     let path = format!(
-        "{}/host-tools/tests/data/soft-real-valves.toml",
+        "{}/configs/soft-real-valves.toml",
         env!("CARGO_MANIFEST_DIR")
     );
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));

@@ -57,10 +57,32 @@ fn real_valves_need_no_ramp() {
 /// 20 ms decay needs (7.1 ms), and the section bound stays 1 %.
 #[test]
 fn real_valves_on_a_soft_machine_state_the_change_and_its_window() {
-    let out =
-        check_path(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/soft-real-valves.toml"));
+    let out = check("soft-real-valves.toml");
     assert!(
         out.contains("worst flow change       22.48 mm/s, faster than the X/Y limit of 1000 mm/s^2 follows (pressure rise/decay): speed ramps 7.1 ms, section bound 1.0 % over 0.2 mm"),
+        "{out}"
+    );
+}
+
+/// The other machines of issue 22 (`docs/soft-machines.md`): instantaneous valves at
+/// 5 000 mm/s^2 ramp each step within the limit and say what that costs; the food pastes
+/// behind real valves at 500 mm/s^2 change their flow faster than the limit follows.
+#[test]
+fn the_bundled_soft_machines_state_their_flow_changes() {
+    let out = check("soft-instant-valves.toml");
+    assert!(
+        out.contains("speed ramps             4.9 ms at the X/Y limit of 5000 mm/s^2"),
+        "{out}"
+    );
+    let out = check("soft-food-pastes.toml");
+    assert!(
+        out.contains(
+            "worst flow change       10.63 mm/s, faster than the X/Y limit of 500 mm/s^2 follows"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("(mashed potato)") && out.contains("(chocolate)"),
         "{out}"
     );
 }

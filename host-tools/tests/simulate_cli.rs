@@ -387,7 +387,7 @@ fn report_warns_when_the_section_or_an_axis_leaves_its_bound() {
         fine.start_um,
         fine.initial_material,
     );
-    let soft = repo().join("host-tools/tests/data/soft-real-valves.toml");
+    let soft = repo().join("configs/soft-real-valves.toml");
     let text = std::fs::read_to_string(&soft).unwrap();
     let at_500 = dir.path().join("soft-500.toml");
     std::fs::write(

@@ -246,7 +246,7 @@ mod tests {
     fn the_report_says_how_near_the_physics_allows() {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/tests/data/soft-real-valves.toml"
+            "/../configs/soft-real-valves.toml"
         );
         let text = std::fs::read_to_string(path).unwrap();
         let mut config: Config = toml::from_str(&text).unwrap();
