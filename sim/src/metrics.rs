@@ -122,6 +122,10 @@ pub struct Metrics {
     pub section_long_samples: Vec<f64>,
     /// Those of `section_long_samples` away from turns (`section_straight_range`'s).
     pub section_straight_samples: Vec<f64>,
+    /// Those of `section_samples` away from turns: each short window at the middle of a
+    /// long one whose heading turns under `STRAIGHT_DEG` (`straight`), so a fillet's arc
+    /// and about 0.1 mm either side of it are left out.
+    pub section_short_straight_samples: Vec<f64>,
     /// Changes of section between two print segments of one bead met (job format 2's
     /// mid-bead `Command::Section`, issue 26): the head's speed changes there at constant
     /// flow over its own ramp, and the long windows that come within `Meter::step_reach`
@@ -174,12 +178,17 @@ impl Metrics {
         band(v)
     }
 
-    /// As `section_band(true)`, over the 0.2 mm windows away from turns only (the
-    /// heading within `STRAIGHT_DEG`): the issue's "away from bead ends and turns". The
-    /// band over every window counts the row ends' U-turns too, where the head's
-    /// slowing for the fillet meets the flow's change.
-    pub fn section_band_straight(&self) -> (f64, f64) {
-        band(&self.section_straight_samples)
+    /// As `section_band`, over the windows away from turns only (a long window whose
+    /// heading stays within `STRAIGHT_DEG`; a short one at the middle of such a long
+    /// one): the issue's "away from bead ends and turns". The band over every window
+    /// counts the row ends' U-turns too, where the head's slowing for the fillet meets
+    /// the flow's change.
+    pub fn section_band_straight(&self, long: bool) -> (f64, f64) {
+        band(if long {
+            &self.section_straight_samples
+        } else {
+            &self.section_short_straight_samples
+        })
     }
 }
 
@@ -206,20 +215,36 @@ pub const SECTION_WINDOW_MM: f64 = 0.02;
 /// only by the plant's step jitter.
 pub const STRAIGHT_DEG: f64 = 10.0;
 
-/// Whether the long window made of `recent`'s short windows (volume, length, end) runs
-/// straight: every short window's chord within `STRAIGHT_DEG` of the whole one's.
-fn straight(recent: &std::collections::VecDeque<(f64, f64, [f64; 2], f64)>) -> bool {
+/// One short window of the long one in progress.
+#[derive(Clone, Copy, Debug)]
+struct Short {
+    /// Volume landed, mm^3; path length, mm; where it ends (x, y), mm; length x each
+    /// move's own section, mm^3.
+    vol: f64,
+    ds: f64,
+    at: [f64; 2],
+    sds: f64,
+    /// Whether it is one of `section_samples` (not within a change of section's reach).
+    counted: bool,
+}
+
+/// Whether the long window made of `recent`'s short windows runs straight: every short
+/// window's chord within `deg` degrees of the whole one's (`STRAIGHT_DEG` for the long
+/// window; half of it for the short one at its middle, whose heading so turns by less
+/// than `STRAIGHT_DEG` over the 0.2 mm around it: at the whole of it a window with
+/// 0.1 mm of a 0.4 mm fillet at one end passed, its middle on the fillet).
+fn straight(recent: &std::collections::VecDeque<Short>, deg: f64) -> bool {
     let (Some(first), Some(last)) = (recent.front(), recent.back()) else {
         return true;
     };
-    let chord = [last.2[0] - first.2[0], last.2[1] - first.2[1]];
+    let chord = [last.at[0] - first.at[0], last.at[1] - first.at[1]];
     let n = chord[0].hypot(chord[1]);
     if n <= 0.0 {
         return false;
     }
-    let cos = STRAIGHT_DEG.to_radians().cos();
+    let cos = deg.to_radians().cos();
     recent.iter().zip(recent.iter().skip(1)).all(|(a, b)| {
-        let d = [b.2[0] - a.2[0], b.2[1] - a.2[1]];
+        let d = [b.at[0] - a.at[0], b.at[1] - a.at[1]];
         let l = d[0].hypot(d[1]);
         l <= 0.0 || (d[0] * chord[0] + d[1] * chord[1]) / (l * n) >= cos
     })
@@ -279,9 +304,9 @@ pub struct Meter {
     reach: StepReach,
     current: Option<(usize, BeadTrace)>,
     last_pos: [f64; 2],
-    /// The current bead's latest short windows (volume, length, end, length x section),
-    /// at least `SECTION_LONG_MM` of them once the bead is that long.
-    recent: std::collections::VecDeque<(f64, f64, [f64; 2], f64)>,
+    /// The current bead's latest short windows, at least `SECTION_LONG_MM` of them once
+    /// the bead is that long.
+    recent: std::collections::VecDeque<Short>,
     /// Cycles metered so far.
     cycles: u64,
     metrics: Metrics,
@@ -505,20 +530,26 @@ impl Meter {
         // section (infinite in a bead without one).
         let ((_, near_short), (raw_long, near_long)) =
             (self.step_near(ds), self.step_near(SECTION_LONG_MM));
-        self.recent.push_back((vol, ds, at, sds));
+        let counted = near_short > 0.0 && near_long > 0.0;
+        self.recent.push_back(Short {
+            vol,
+            ds,
+            at,
+            sds,
+            counted,
+        });
         while self.recent.len() > 1
-            && self.recent.iter().skip(1).map(|w| w.1).sum::<f64>() >= SECTION_LONG_MM
+            && self.recent.iter().skip(1).map(|w| w.ds).sum::<f64>() >= SECTION_LONG_MM
         {
             self.recent.pop_front();
         }
-        let (v, l, sl) = self
-            .recent
-            .iter()
-            .fold((0.0, 0.0, 0.0), |a, w| (a.0 + w.0, a.1 + w.1, a.2 + w.3));
+        let (v, l, sl) = self.recent.iter().fold((0.0, 0.0, 0.0), |a, w| {
+            (a.0 + w.vol, a.1 + w.ds, a.2 + w.sds)
+        });
         if raw_long.is_finite() && l >= SECTION_LONG_MM {
             self.metrics.section_step_samples.push((raw_long, v / sl));
         }
-        if near_short <= 0.0 || near_long <= 0.0 {
+        if !counted {
             // Within a change's reach: kept in `section_step_samples` only.
             return;
         }
@@ -537,7 +568,7 @@ impl Meter {
             }
             self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
             self.metrics.section_long_samples.push(ratio);
-            if straight(&self.recent) {
+            if straight(&self.recent, STRAIGHT_DEG) {
                 let (lo, hi) = self.metrics.section_straight_range;
                 if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
                     self.metrics.section_straight_worst_at = at;
@@ -545,6 +576,12 @@ impl Meter {
                 }
                 self.metrics.section_straight_range = (lo.min(ratio), hi.max(ratio));
                 self.metrics.section_straight_samples.push(ratio);
+                let mid = self.recent[self.recent.len() / 2];
+                if mid.counted && straight(&self.recent, STRAIGHT_DEG / 2.0) {
+                    self.metrics
+                        .section_short_straight_samples
+                        .push(mid.vol / mid.sds);
+                }
             }
         }
     }
@@ -785,20 +822,26 @@ mod tests {
     /// fillet (a row end's turn at 0.8 mm pitch) does not; one with no length does not.
     #[test]
     fn straight_windows_are_told_from_turns() {
+        let short = |ds: f64, at: [f64; 2]| Short {
+            vol: 0.0,
+            ds,
+            at,
+            sds: 0.0,
+            counted: true,
+        };
         let line: std::collections::VecDeque<_> = (0..11)
-            .map(|i| (0.0, 0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64], 0.0))
+            .map(|i| short(0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64]))
             .collect();
-        assert!(straight(&line));
+        assert!(straight(&line, STRAIGHT_DEG));
         let arc: std::collections::VecDeque<_> = (0..11)
             .map(|i| {
                 let a = i as f64 * 0.02 / 0.4;
-                (0.0, 0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())], 0.0)
+                short(0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())])
             })
             .collect();
-        assert!(!straight(&arc));
-        let still: std::collections::VecDeque<_> =
-            (0..3).map(|_| (0.0, 0.0, [1.0, 1.0], 0.0)).collect();
-        assert!(!straight(&still));
+        assert!(!straight(&arc, STRAIGHT_DEG));
+        let still: std::collections::VecDeque<_> = (0..3).map(|_| short(0.0, [1.0, 1.0])).collect();
+        assert!(!straight(&still, STRAIGHT_DEG));
     }
     use super::*;
 
@@ -839,6 +882,63 @@ mod tests {
         assert_eq!(b[0].commands, (1, 3));
         assert_eq!(b[0].runs, vec![([0.0, 0.0], 0), ([1.0, 0.0], 1)]);
         assert_eq!(b[1].runs, vec![([5.0, 0.0], 1)]);
+    }
+
+    /// The 0.02 mm windows away from turns leave a U-turn out: a bead that lays 10 %
+    /// too much paste through its 0.4 mm fillet and exactly its section on the straights
+    /// either side has that bulge in its band over every 0.02 mm and none away from turns.
+    #[test]
+    fn short_windows_away_from_turns_leave_a_fillet_out() {
+        let cmds = [
+            Command::Travel { x: 0, y: 0, z: 600 },
+            Command::Print {
+                dx: 3000,
+                dy: 0,
+                material: 0,
+            },
+            Command::End,
+        ];
+        let mut m = Meter::new(&cmds, [0, 0, 0], 0.5);
+        let step = 0.005;
+        let arc = std::f64::consts::PI * 0.4;
+        let n = ((2.0 + arc) / step) as usize;
+        let mut last = [0.0, 0.0];
+        for i in 0..=n {
+            let s = i as f64 * step;
+            let (pos, bulge) = if s <= 1.0 {
+                ([s, 0.0], 1.0)
+            } else if s <= 1.0 + arc {
+                let a = (s - 1.0) / 0.4 - std::f64::consts::FRAC_PI_2;
+                ([1.0 + 0.4 * a.cos(), 0.4 + 0.4 * a.sin()], 1.1)
+            } else {
+                ([1.0 - (s - 1.0 - arc), 0.8], 1.0)
+            };
+            let ds = (pos[0] - last[0]).hypot(pos[1] - last[1]);
+            last = pos;
+            m.cycle(CycleIn {
+                bead_command: Some(1),
+                printing: true,
+                pos,
+                landed_volume: 0.5 * ds * bulge,
+                landing_before: 0,
+                changes: &[],
+            });
+        }
+        let r = m.finish();
+        let (lo, hi) = r.section_range;
+        assert!(hi > 1.09 && lo > 0.99, "{lo} .. {hi}");
+        let short = &r.section_short_straight_samples;
+        // Both straights but their last 0.1 mm before the fillet and first after it.
+        assert!(short.len() > 70, "{}", short.len());
+        assert!(
+            short.iter().all(|&x| (x - 1.0).abs() < 1e-3),
+            "{:?}",
+            short
+                .iter()
+                .fold((2.0f64, 0.0f64), |a, &x| (a.0.min(x), a.1.max(x)))
+        );
+        let (p1, p99) = r.section_band_straight(false);
+        assert!(p99 - p1 < 1e-3, "{p1} .. {p99}");
     }
 
     #[test]

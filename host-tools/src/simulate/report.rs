@@ -72,16 +72,18 @@ pub fn report_text(
         dollop::config::SECTION_WINDOW_MM,
         dollop_sim::metrics::STRAIGHT_DEG
     ));
-    let (b, bl, bs) = (
+    let (b, bss, bl, bs) = (
         m.section_band(false),
+        m.section_band_straight(false),
         m.section_band(true),
-        m.section_band_straight(),
+        m.section_band_straight(true),
     );
     s.push_str(&format!(
-        "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} over 0.2 mm, {:.4} away from turns\n",
+        "section band      p99 - p1 {:.4} over 0.02 mm ({:.4} .. {:.4}), {:.4} away from turns; {:.4} over 0.2 mm, {:.4} away from turns\n",
         b.1 - b.0,
         b.0,
         b.1,
+        bss.1 - bss.0,
         bl.1 - bl.0,
         bs.1 - bs.0
     ));
