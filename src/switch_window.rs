@@ -28,10 +28,10 @@ use crate::real::Real;
 /// transit, far slower.
 ///
 /// The window is never shorter than the bead's tight turns ahead need (`TurnWalk`), nor
-/// than a millisecond (`min_half`): a window narrowed for the flow shows the head every
-/// fillet, and every rounding of the plan, that the machine's long window smoothed. Of
-/// the two, the millisecond took the logo at 500 mm/s^2 from 610 to 519 / 534 mm/s^2 on
-/// X / Y; sized at the flushed speed, no turn of the four designs measured (chessboard,
+/// than keeps the plan's unramped kinks within the limit (`min_half`: 2.9 ms at
+/// 1 000 mm/s^2): a window narrowed for the flow shows the head every fillet, and every
+/// rounding of the plan, that the machine's long window smoothed. Of the two, the kinks'
+/// floor took the logo at 500 mm/s^2 from 610 to 519 / 534 mm/s^2 on X / Y; sized at the flushed speed, no turn of the four designs measured (chessboard,
 /// random pattern, logo, fine features) widened a window.
 ///
 /// A step at a time, so that the executor spreads it over the cycles after the decision
@@ -466,14 +466,26 @@ fn turn_window(v: f32, near: f32, limit: f32, turns: impl Iterator<Item = Turn>)
     w.window()
 }
 
-/// The narrowest half window (frames) a decision takes: what keeps within `limit` the
-/// largest step of the plan's velocity that `crate::step_ramps` does not take for one
-/// (`StepRamps::UNSEEN` position units a cycle, 4 mm/s at 10 kHz) and so does not ramp
-/// over a window of its own. With no floor the logo at 500 mm/s^2 reached 610 mm/s^2
-/// on X and Y, and the fine features 1 045 on Y (a 1.3 mm/s kink over a few frames).
+/// Share of the largest step of the plan's velocity that `crate::step_ramps` does not
+/// take for one (`StepRamps::UNSEEN` position units a cycle, 4 mm/s at 10 kHz) that a
+/// decision's narrowest window keeps within the limit (`min_half`): 2.7 mm/s, twice the
+/// largest such kink measured (1.3 mm/s over a few frames, the fine features at
+/// 500 mm/s^2). The whole of it kept every decision's window at least 4.3 ms wide at
+/// 1 000 mm/s^2, and the box mean laid its `dv w / 8` at every kink of a valve's flow
+/// whose own change needed none: on issue 22's machine (`configs/soft-real-valves.toml`)
+/// the random pattern's band over 0.2 mm 0.0043 -> 0.0020 and over 0.02 mm 0.0196 ->
+/// 0.0091 at 2 / 3; at a half, 0.0012 and 0.0045, but the logo at 500 mm/s^2 took Y to
+/// 511 mm/s^2 with the valves shut.
+const KINK_SHARE: f32 = 2.0 / 3.0;
+
+/// The narrowest half window (frames) a decision takes: what keeps within `limit`
+/// `KINK_SHARE` of the largest step of the plan's velocity that `crate::step_ramps` does
+/// not ramp over a window of its own. With no floor the logo at 500 mm/s^2 reached
+/// 610 mm/s^2 on X and Y, and the fine features 1 045 on Y (a 1.3 mm/s kink over a few
+/// frames).
 fn min_half<R: Real, const N: usize>(m: &Machine<R, N>, limit: f32) -> u32 {
     let dt = m.dt().to_f32();
-    let step = crate::step_ramps::StepRamps::UNSEEN as f32 * 1.0e-4 / dt;
+    let step = KINK_SHARE * crate::step_ramps::StepRamps::UNSEEN as f32 * 1.0e-4 / dt;
     let frames = libm::ceilf(step / limit / dt);
     (frames as u32 / 2).min(m.ramp_cycles / 2)
 }
