@@ -845,36 +845,25 @@ mod tests {
     }
     use super::*;
 
+    /// A print move of `dx`, `dy` um in `material`.
+    fn print(dx: i32, dy: i32, material: u8) -> Command {
+        Command::Print { dx, dy, material }
+    }
+
     #[test]
     fn beads_and_runs_follow_the_commands() {
         let cmds = [
             Command::Travel { x: 0, y: 0, z: 600 },
-            Command::Print {
-                dx: 1000,
-                dy: 0,
-                material: 0,
-            },
-            Command::Print {
-                dx: 1000,
-                dy: 0,
-                material: 1,
-            },
-            Command::Print {
-                dx: 0,
-                dy: 800,
-                material: 1,
-            },
+            print(1000, 0, 0),
+            print(1000, 0, 1),
+            print(0, 800, 1),
             Command::Dwell { ms: 10 },
             Command::Travel {
                 x: 5000,
                 y: 0,
                 z: 600,
             },
-            Command::Print {
-                dx: 1000,
-                dy: 0,
-                material: 1,
-            },
+            print(1000, 0, 1),
             Command::End,
         ];
         let b = design_beads(&cmds, [0, 0, 0]);
@@ -891,11 +880,7 @@ mod tests {
     fn short_windows_away_from_turns_leave_a_fillet_out() {
         let cmds = [
             Command::Travel { x: 0, y: 0, z: 600 },
-            Command::Print {
-                dx: 3000,
-                dy: 0,
-                material: 0,
-            },
+            print(3000, 0, 0),
             Command::End,
         ];
         let mut m = Meter::new(&cmds, [0, 0, 0], 0.5);
@@ -945,16 +930,8 @@ mod tests {
     fn a_boundary_landing_late_is_measured_along_the_path() {
         let cmds = [
             Command::Travel { x: 0, y: 0, z: 600 },
-            Command::Print {
-                dx: 1000,
-                dy: 0,
-                material: 0,
-            },
-            Command::Print {
-                dx: 1000,
-                dy: 0,
-                material: 1,
-            },
+            print(1000, 0, 0),
+            print(1000, 0, 1),
             Command::End,
         ];
         let mut m = Meter::new(&cmds, [0, 0, 0], 0.5);
