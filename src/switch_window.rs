@@ -31,8 +31,9 @@ use crate::real::Real;
 /// than keeps the plan's unramped kinks within the limit (`min_half`: 2.9 ms at
 /// 1 000 mm/s^2): a window narrowed for the flow shows the head every fillet, and every
 /// rounding of the plan, that the machine's long window smoothed. Of the two, the kinks'
-/// floor took the logo at 500 mm/s^2 from 610 to 519 / 534 mm/s^2 on X / Y; sized at the flushed speed, no turn of the four designs measured (chessboard,
-/// random pattern, logo, fine features) widened a window.
+/// floor took the logo at 500 mm/s^2 from 610 to 519 / 534 mm/s^2 on X / Y; sized at
+/// the flushed speed, no turn of the four designs measured (chessboard, random pattern,
+/// logo, fine features) widened a window.
 ///
 /// A step at a time, so that the executor spreads it over the cycles after the decision
 /// (`crate::executor`'s sizing; the whole of it, with the walk over the turns ahead, was
