@@ -228,26 +228,36 @@ struct Short {
     counted: bool,
 }
 
-/// Whether the long window made of `recent`'s short windows runs straight: every short
-/// window's chord within `deg` degrees of the whole one's (`STRAIGHT_DEG` for the long
-/// window; half of it for the short one at its middle, whose heading so turns by less
-/// than `STRAIGHT_DEG` over the 0.2 mm around it: at the whole of it a window with
-/// 0.1 mm of a 0.4 mm fillet at one end passed, its middle on the fillet).
-fn straight(recent: &std::collections::VecDeque<Short>, deg: f64) -> bool {
+/// How straight the long window made of `recent`'s short windows runs: the least cosine
+/// of a short window's chord against the whole one's (1 with none; minus infinity for a
+/// window with no length, which is no straight). Straight at `STRAIGHT_DEG`
+/// (`straight_at`); the short window at its middle counts as away from turns at half of
+/// it, so that its heading turns by less than `STRAIGHT_DEG` over the 0.2 mm around it
+/// (at the whole of it a window with 0.1 mm of a 0.4 mm fillet at one end passed, its
+/// middle on the fillet).
+fn heading_cos(recent: &std::collections::VecDeque<Short>) -> f64 {
     let (Some(first), Some(last)) = (recent.front(), recent.back()) else {
-        return true;
+        return 1.0;
     };
     let chord = [last.at[0] - first.at[0], last.at[1] - first.at[1]];
     let n = chord[0].hypot(chord[1]);
     if n <= 0.0 {
-        return false;
+        return f64::NEG_INFINITY;
     }
-    let cos = deg.to_radians().cos();
-    recent.iter().zip(recent.iter().skip(1)).all(|(a, b)| {
-        let d = [b.at[0] - a.at[0], b.at[1] - a.at[1]];
-        let l = d[0].hypot(d[1]);
-        l <= 0.0 || (d[0] * chord[0] + d[1] * chord[1]) / (l * n) >= cos
-    })
+    recent
+        .iter()
+        .zip(recent.iter().skip(1))
+        .filter_map(|(a, b)| {
+            let d = [b.at[0] - a.at[0], b.at[1] - a.at[1]];
+            let l = d[0].hypot(d[1]);
+            (l > 0.0).then(|| (d[0] * chord[0] + d[1] * chord[1]) / (l * n))
+        })
+        .fold(1.0, f64::min)
+}
+
+/// Whether a `heading_cos` of `cos` runs within `deg` degrees.
+fn straight_at(cos: f64, deg: f64) -> bool {
+    cos >= deg.to_radians().cos()
 }
 
 /// Path length of the long cross-section window, mm (the issue's "every 0.2 mm of
@@ -568,7 +578,8 @@ impl Meter {
             }
             self.metrics.section_long_range = (lo.min(ratio), hi.max(ratio));
             self.metrics.section_long_samples.push(ratio);
-            if straight(&self.recent, STRAIGHT_DEG) {
+            let cos = heading_cos(&self.recent);
+            if straight_at(cos, STRAIGHT_DEG) {
                 let (lo, hi) = self.metrics.section_straight_range;
                 if (1.0 - ratio).abs() > (1.0 - lo).abs().max((hi - 1.0).abs()) || !lo.is_finite() {
                     self.metrics.section_straight_worst_at = at;
@@ -577,7 +588,7 @@ impl Meter {
                 self.metrics.section_straight_range = (lo.min(ratio), hi.max(ratio));
                 self.metrics.section_straight_samples.push(ratio);
                 let mid = self.recent[self.recent.len() / 2];
-                if mid.counted && straight(&self.recent, STRAIGHT_DEG / 2.0) {
+                if mid.counted && straight_at(cos, STRAIGHT_DEG / 2.0) {
                     self.metrics
                         .section_short_straight_samples
                         .push(mid.vol / mid.sds);
@@ -832,16 +843,16 @@ mod tests {
         let line: std::collections::VecDeque<_> = (0..11)
             .map(|i| short(0.02, [i as f64 * 0.02, 1e-4 * (i % 2) as f64]))
             .collect();
-        assert!(straight(&line, STRAIGHT_DEG));
+        assert!(straight_at(heading_cos(&line), STRAIGHT_DEG));
         let arc: std::collections::VecDeque<_> = (0..11)
             .map(|i| {
                 let a = i as f64 * 0.02 / 0.4;
                 short(0.02, [0.4 * a.sin(), 0.4 * (1.0 - a.cos())])
             })
             .collect();
-        assert!(!straight(&arc, STRAIGHT_DEG));
+        assert!(!straight_at(heading_cos(&arc), STRAIGHT_DEG));
         let still: std::collections::VecDeque<_> = (0..3).map(|_| short(0.0, [1.0, 1.0])).collect();
-        assert!(!straight(&still, STRAIGHT_DEG));
+        assert!(!straight_at(heading_cos(&still), STRAIGHT_DEG));
     }
     use super::*;
 
