@@ -123,7 +123,7 @@ pub struct Metrics {
     /// Those of `section_long_samples` away from turns (`section_straight_range`'s).
     pub section_straight_samples: Vec<f64>,
     /// Those of `section_samples` away from turns: each short window at the middle of a
-    /// long one whose heading turns under `STRAIGHT_DEG` (`straight`), so a fillet's arc
+    /// long one whose heading turns under `STRAIGHT_DEG` (`heading_cos`), so a fillet's arc
     /// and about 0.1 mm either side of it are left out.
     pub section_short_straight_samples: Vec<f64>,
     /// Changes of section between two print segments of one bead met (job format 2's
