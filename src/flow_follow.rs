@@ -1,5 +1,5 @@
-//! A slew-limited follower of the flow's speed for a channel of several pastes (issue 22).
-//! There the valves change the flow faster than the X/Y limit allows (paste B's line
+//! A slew-limited follower of the flow's speed through each valve decision's change
+//! (issue 22). With several pastes in the channel the valves change the flow faster than the X/Y limit allows (paste B's line
 //! closing into a channel still mostly paste A: from 14.8 to 4.2 mm/s in 26 ms, up to
 //! 1 124 mm/s^2 at the kink), and a centred box mean within the limit must be as wide as
 //! the change is large (24 ms on the fine features at 500 mm/s^2): it spreads the head's
@@ -26,8 +26,8 @@
 //! pattern at 500 mm/s^2 was 8.9 % off over 0.2 mm of straight bead; now 3.8 %. It stops
 //! at the head's speed and lag along the mean's path: the ring's mean (with its narrow
 //! box for fillets and rounding) is what it bends, through the width blend's offset
-//! (`crate::width_blend`). Where to use it is `crate::switch_window`'s call: every
-//! decision with several pastes in the channel.
+//! (`crate::width_blend`). Where to use it is `crate::switch_window`'s call: every valve
+//! decision the window is sized for there.
 
 use crate::fast::{max, min};
 use crate::follow_trail::Trail;
@@ -96,6 +96,10 @@ const AHEAD_MOST: f32 = 2.0;
 const STRAIGHT: f32 = 0.99;
 // Past the turns' margin, within the whole limit.
 const _: () = assert!(STRAIGHT > MARGIN && STRAIGHT <= 1.0);
+
+/// Share of the whole limit a turn of the mean may take with the follower still standing
+/// down (its settling waits for the turn's end past it). A tenth or a half: the same.
+const SETTLE_TURN: f32 = 0.25;
 
 /// In a turn the head aims no faster than this share of the way from the mean's speed to
 /// the speed at which the turn alone takes the limit (the stripes' X: 507 mm/s^2 at the
@@ -518,7 +522,12 @@ impl FlowFollow {
             self.u = max(min(to, self.u + a), self.u - a);
         }
         self.e += vm - self.u;
+        // Not in a turn: the frames the ring holds past the outputs' were planned while the
+        // follower ran, unslowed at tight fillets, and a head handed back to the mean in a
+        // U-turn met the rest of it at the flow's speed (518 mm/s^2 at 500).
+        let turning = d2 * turn2 >= SETTLE_TURN * SETTLE_TURN * self.a * self.a;
         let settled = libm::fabsf(self.e) < 0.5
+            && !turning
             && libm::fabsf(self.u - vm) < 4.0 * a
             && hi - lo < 4.0 * a
             && self.since > 2 * self.half;
@@ -600,7 +609,7 @@ impl FlowFollow {
     /// change gets what the head's turn leaves of the whole limit (`slew`); it may always
     /// slow by `SLOW_FLOOR` of it; and in a turn it aims no faster than halfway from the
     /// mean's speed to the speed at which the turn alone takes `MARGIN` of the whole
-    /// limit.
+    /// limit, nor, at or below the mean's speed, than that speed itself.
     fn steer(&mut self, lo: f32, hi: f32, vm: f32, d2: f32, turn2: f32) {
         let whole = self.a * MARGIN;
         // The head's turn: the mean's at the head's speed (the same path), the speed's
@@ -620,12 +629,25 @@ impl FlowFollow {
             -RETURN_SHARE * vm,
         );
         let mut want = LOW_WEIGHT * lo + (1.0 - LOW_WEIGHT) * hi + back;
-        // The cap binds only above the mean's speed: checked in fourth powers, the roots
-        // taken only where it does (two software roots a tick otherwise).
-        let need = vm + (want - vm) / CAP_SHARE;
-        if want > vm && turn2 > 0.0 && whole * whole * d2 < need * need * need * need * turn2 {
+        // Checked in fourth powers, the roots taken only where the cap binds (two software
+        // roots a tick otherwise). Below the mean's speed too: the plan is not slowed at
+        // tight fillets while the follower runs (`executor::turns`), so a mean that
+        // meets a U-turn faster than the turn allows is the follower's to slow (the random
+        // pattern at 500 with every decision followed: 518 mm/s^2 round a row end). Above
+        // the mean's speed, still halfway to the cap: straight to it, that pattern's
+        // worst straight 0.2 mm went from 2.64 to 3.51 % off.
+        let need = if want > vm {
+            vm + (want - vm) / CAP_SHARE
+        } else {
+            want
+        };
+        if turn2 > 0.0 && whole * whole * d2 < need * need * need * need * turn2 {
             let cap = libm::sqrtf(libm::sqrtf(whole * whole * d2 / turn2));
-            want = min(want, vm + CAP_SHARE * (cap - vm));
+            want = if want > vm {
+                min(want, vm + CAP_SHARE * (cap - vm))
+            } else {
+                min(want, cap)
+            };
         }
         let down = max(slew, SLOW_FLOOR * self.a);
         self.u = max(min(want, self.u + slew), max(self.u - down, 0.0));

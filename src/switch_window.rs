@@ -1,12 +1,12 @@
 //! Ramp windows per valve decision (issue 22): at the decision to open, switch or close
-//! the valves, the window the head's speed ramp needs for the flow change they are about
-//! to make, sized from the channel's contents then. The machine's one window is sized
-//! for the fastest change the valves can make anywhere (paste B's line closing into a
-//! channel still full of paste A); most decisions make far slower ones, and that window's
-//! mean only smears them over the bead. This sizes one decision's window; the ramp ring
-//! narrows or widens its mean to it (`Ramp::set_goal`); what is not sized here (steps of
-//! pressure, syringes, unequal dead times) keeps the machine's window, and a
-//! shear-thinning paste's every change goes to the follower (`crate::flow_follow`).
+//! the valves, the window the head's speed ramp needs there, sized from the channel's
+//! contents then. The machine's one window is sized for the fastest change the valves
+//! can make anywhere (paste B's line closing into a channel still full of paste A); its
+//! mean only smears most changes over the bead. The flow's change itself goes to the
+//! follower (`crate::flow_follow`), which meets it within the limit; this sizes the
+//! window for what the follower bends: the turns ahead and the plan's rounding. The ramp
+//! ring narrows or widens its mean to it (`Ramp::set_goal`); what is not sized here
+//! (syringes, two lines closing at once, unequal dead times) keeps the machine's window.
 
 use crate::config::{Machine, RAMP_SHARE};
 use crate::flow_model::FlowModel;
@@ -14,18 +14,16 @@ use crate::real::Real;
 
 /// A decision's window in the making: half the window (frames) the head's mean needs for
 /// the valves going from the inlets of `closing` (bit mask) to `opening` (none: closing
-/// only), or `None` for the machine's. Newtonian contents and one closing, one opening
-/// pneumatic line of first-order pressure changes with equal dead times only; with
-/// shear-thinning contents the follower takes the change (`switch_start`).
+/// only), or `None` for the machine's. One closing, one opening pneumatic line with equal
+/// dead times only.
 ///
-/// After the dead time the closing line's pressure decays as `exp(-t / tau_d)` and the
-/// opening one's rises as `1 - exp(-t / tau_r)`; the junction follows the higher, so the
-/// head's speed (the flow over the bead section) is
-/// `v(t) = max(v_c exp(-t / tau_d), v_o (1 - exp(-t / tau_r)))`, `v_c` the channel's
-/// speed now and `v_o` the opening line's supply through the contents now. The window
-/// is the longer of the decay's from its start and the rise's from where it overtakes
-/// the decay. The contents change as the new paste enters the channel, over its
-/// transit, far slower.
+/// The flow's change is the follower's (`begin_follow`). Sized here for that change
+/// instead, a box mean as wide as a valve's first-order decay needs within the limit
+/// (Newtonian contents of one paste; the follower took the rest) spread the head's ramp
+/// over the change and its own width: on real valves at 500 mm/s^2 the chessboard's band
+/// over 0.2 mm was 0.0089 and the random pattern 3.41 % off over 0.2 mm of straight
+/// bead; with the follower, 0.0031 and 2.64 %. At 1 000 the bands moved by 0.0001 at
+/// most, at 2 000 not at all.
 ///
 /// The window is never shorter than the bead's tight turns ahead need (`TurnWalk`), nor
 /// than keeps the plan's unramped kinks within the limit (`min_half`: 2.9 ms at
@@ -38,17 +36,12 @@ use crate::real::Real;
 /// A step at a time, so that the executor spreads it over the cycles after the decision
 /// (`crate::executor`'s sizing; the whole of it, with the walk over the turns ahead, was
 /// up to 5 000 instructions in the decision's cycle on the soft machine): `switch_start`
-/// checks the contents, `begin_follow` hands a mixed channel's change to the follower, `step` sizes it
-/// (three steps of an `expf` or a few), and the caller feeds `walk` the turns ahead and
-/// reads `half`.
+/// checks the contents, `begin_follow` hands the flow's change to the follower, `step`
+/// sets the walk up, and the caller feeds `walk` the turns ahead and reads `half`.
 #[derive(Clone, Copy, Debug)]
 pub struct Sizing {
-    /// The window the flow's change needs so far, s.
-    pub w: f32,
     /// The ramps' share of the X/Y limit it holds, mm/s^2.
     pub limit: f32,
-    /// The follower (`crate::flow_follow`) takes the flow's change.
-    pub follow: bool,
     /// The turns ahead, fed by the caller once `step` is done.
     pub walk: TurnWalk,
     flow: FlowChange,
@@ -59,107 +52,52 @@ pub struct Sizing {
     soon: f32,
 }
 
-/// The flow's change a decision makes: the channel's speed `v_c` decaying (time
-/// constant `tau_d`) into the opening line's `v_o` rising (`tau_r`), after `delay`; the
-/// speed the turns are sized at, the time the flow takes to settle, and the rise's
-/// crossing of the decay `t` (s from the kink) once found.
+/// The flow's change a decision makes: the channel's speed `v_c` going to the opening
+/// line's `v_o` after `delay`, settled some `settle` s later; the speed the turns are
+/// sized at.
 #[derive(Clone, Copy, Debug)]
 struct FlowChange {
     v_o: f32,
     v_c: f32,
-    tau_r: f32,
-    tau_d: f32,
     delay: f32,
     settle: f32,
     v_turn: f32,
-    t: f32,
-    /// 0: the follower to start; 1 to 3: the flow's window (`Sizing::step`); then
-    /// sized.
+    /// 0: the follower to start; 1: the walk to set up (`Sizing::step`); 2: sized.
     stage: u8,
 }
 
 impl Sizing {
-    /// Whether the flow's window is sized (`step`).
+    /// Whether the walk is set up (`step`).
     pub fn sized(&self) -> bool {
-        self.flow.stage > 3
+        self.flow.stage > 1
     }
 
-    /// Whether the follower is still to start: several pastes in the channel.
+    /// Whether the follower is still to start.
     pub fn checking(&self) -> bool {
         self.flow.stage == 0
     }
 
-    /// The follower (`crate::flow_follow`) takes the flow's change of a channel of
-    /// several pastes, a head speed slewed within the limit, and the window is sized for
-    /// the turns and the plan's rounding only. A box sized for the change instead left
-    /// the fine features 8.3 % off over 0.2 mm at 500 mm/s^2; the follower, 2.1 %. Near a
-    /// fillet tighter than the limit allows at the flow's speed too, since the follower
-    /// plans its speed by the mean's own path ahead and keeps a lagging head on that path
-    /// (`crate::follow_trail`): barred there, a box sized from the contents left the
-    /// random pattern 8.9 % off over 0.2 mm of straight bead at 500 (3.8 % now).
+    /// The follower (`crate::flow_follow`) takes the flow's change, a head speed slewed
+    /// within the limit, and the window is sized for the turns and the plan's rounding
+    /// only. Near a fillet tighter than the limit allows at the flow's speed too, since
+    /// the follower plans its speed by the mean's own path ahead and keeps a lagging head
+    /// on that path (`crate::follow_trail`): barred there, a box sized from the contents
+    /// left the random pattern 8.9 % off over 0.2 mm of straight bead at 500 (3.8 % then).
     pub fn begin_follow(&mut self) {
-        self.follow = true;
         self.flow.stage = 1;
     }
 
-    /// The next step of the flow's window; `true` once it is sized and `walk` takes the
-    /// turns. Steps: the decay's window; the rise's crossing of it (three Newton steps);
-    /// the rise's window from there. None when the follower takes the change.
+    /// Sets the walk over the turns ahead up; `true` once it is.
     pub fn step(&mut self) -> bool {
         let f = &mut self.flow;
-        if f.stage > 3 {
+        if f.stage > 1 {
             return true;
-        }
-        let limit = self.limit;
-        if self.follow {
-            f.stage = 3;
-        } else {
-            match f.stage {
-                0 | 1 => {
-                    // The decay from the kink: the steepest chord of a falling exponential
-                    // starts there.
-                    self.w = window(f.v_c, f.tau_d, limit);
-                }
-                2 => {
-                    // The rise takes over where it crosses the decay; Newton from below
-                    // the crossing (the difference is concave and rising) stays below it,
-                    // so what is left of the rise is never underestimated.
-                    let (v_o, v_c, tau_r, tau_d) = (f.v_o, f.v_c, f.tau_r, f.tau_d);
-                    let mut t = if v_c > 0.0 {
-                        v_c / (v_o / tau_r + v_c / tau_d)
-                    } else {
-                        0.0
-                    };
-                    if v_c > 0.0 && v_o > 0.0 {
-                        for _ in 0..3 {
-                            let (er, ed) = (libm::expf(-t / tau_r), libm::expf(-t / tau_d));
-                            let g = v_o * (1.0 - er) - v_c * ed;
-                            let dg = v_o / tau_r * er + v_c / tau_d * ed;
-                            if !(g < 0.0 && dg > 0.0) {
-                                break;
-                            }
-                            t -= g / dg;
-                        }
-                    }
-                    f.t = t;
-                }
-                _ => {
-                    if f.v_o > 0.0 {
-                        let rise = window(f.v_o * libm::expf(-f.t / f.tau_r), f.tau_r, limit);
-                        self.w = crate::fast::max(self.w, rise);
-                    }
-                }
-            }
-            if f.stage < 3 {
-                f.stage = f.stage.max(1) + 1;
-                return false;
-            }
         }
         // The flow's change lies within the dead time and a few time constants of the
         // decision; a turn there meets it.
-        let near = crate::fast::max(f.v_o, f.v_c) * (f.delay + f.settle + self.w);
-        self.walk = TurnWalk::new(f.v_turn, near, limit).soon(self.soon);
-        f.stage = 4;
+        let near = crate::fast::max(f.v_o, f.v_c) * (f.delay + f.settle);
+        self.walk = TurnWalk::new(f.v_turn, near, self.limit).soon(self.soon);
+        f.stage = 2;
         true
     }
 
@@ -175,8 +113,7 @@ impl Sizing {
     }
 
     fn half_of<R: Real, const N: usize>(&self, m: &Machine<R, N>, turns: f32) -> Option<u32> {
-        let w = crate::fast::max(self.w, turns);
-        let cycles = w / m.dt().to_f32();
+        let cycles = turns / m.dt().to_f32();
         let half = m.ramp_cycles / 2;
         if cycles.is_nan() || cycles < 0.0 || cycles >= (2 * half + 1) as f32 {
             return None;
@@ -191,20 +128,15 @@ impl Sizing {
     /// A sizing with its flow's change sized (no window for it), walking `walk`'s turns.
     pub(crate) fn walking(walk: TurnWalk) -> Self {
         Sizing {
-            w: 0.0,
             limit: 1.0,
-            follow: false,
             walk,
             flow: FlowChange {
                 v_o: 0.0,
                 v_c: 0.0,
-                tau_r: 1.0,
-                tau_d: 1.0,
                 delay: 0.0,
                 settle: 0.0,
                 v_turn: 0.0,
-                t: 0.0,
-                stage: 4,
+                stage: 2,
             },
             defer: 0.0,
             soon: f32::INFINITY,
@@ -283,8 +215,6 @@ pub fn switch_start<R: Real, const N: usize>(
     // 500 mm/s^2, and its box mean cut the turn with the flow steady: 4.03 % off over
     // 0.2 mm of a crop, none now.
     let flush = open.map(|o| o.flushed_mm_s.to_f32()).filter(|&v| v > 0.0);
-    // Several pastes in the channel: the follower's (`Sizing::begin_follow`).
-    let mixed = model.channel().len() > 1 || !linear;
     // Past the channel's flush the head moves at the opening paste's own speed through a
     // channel full of it (a bead's end: the closing speed, at most). Before the flush it
     // may be faster (paste B opening into paste A), but sizing the turns for that took
@@ -309,20 +239,15 @@ pub fn switch_start<R: Real, const N: usize>(
         (0.0, f32::INFINITY)
     };
     Some(Sizing {
-        w: 0.0,
         limit,
-        follow: false,
         walk: TurnWalk::new(v_turn, 0.0, limit),
         flow: FlowChange {
             v_o,
             v_c,
-            tau_r,
-            tau_d,
             delay,
             settle,
             v_turn,
-            t: 0.0,
-            stage: if mixed { 0 } else { 1 },
+            stage: 0,
         },
         defer,
         soon,
@@ -491,29 +416,6 @@ fn min_half<R: Real, const N: usize>(m: &Machine<R, N>, limit: f32) -> u32 {
     (frames as u32 / 2).min(m.ramp_cycles / 2)
 }
 
-/// The shortest window (s) over which the head's mean takes a first-order change of `v`
-/// (mm/s, time constant `tau`, from its kink) within `limit`, or a little longer: any
-/// chord of the change over `w` is at most `v (1 - exp(-w / tau)) / w`, so `x = w / tau`
-/// is the root of `f(x) = 1 - exp(-x) - r x`, `r = limit tau / v`. `f` is concave, and
-/// `1 - exp(-x) <= 2 x / (2 + x)` puts `2 (1 / r - 1)` at or past the root: Newton's
-/// steps from there stay at or past it.
-fn window(v: f32, tau: f32, limit: f32) -> f32 {
-    let r = limit * tau / v;
-    if r.is_nan() || r >= 1.0 {
-        return 0.0;
-    }
-    let mut x = 2.0 * (1.0 / r - 1.0);
-    for _ in 0..2 {
-        let e = libm::expf(-x);
-        let (f, df) = (1.0 - e - r * x, e - r);
-        if !(f < 0.0 && df < 0.0) {
-            break;
-        }
-        x -= f / df;
-    }
-    x * tau
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -531,33 +433,6 @@ mod tests {
             from,
             to,
         }
-    }
-
-    /// The window is the f64 reference's (`config::ramp_window`, bisection) or a little
-    /// longer, never shorter: within the limit, and within 1 % of the shortest.
-    #[test]
-    fn windows_hold_the_limit_and_are_nearly_the_shortest() {
-        for (v, tau, a) in [
-            (10.0f32, 0.02f32, 475.0f32),
-            (22.48, 0.03, 475.0),
-            (16.3, 0.03, 475.0),
-            (22.48, 0.02, 950.0),
-            (5.0, 0.001, 200.0),
-        ] {
-            let w = window(v, tau, a);
-            let reference = crate::config::ramp_window(v as f64, v as f64, tau as f64, a as f64);
-            assert!(
-                w as f64 >= reference * (1.0 - 1e-4) && (w as f64) <= reference * 1.01 + 1e-6,
-                "{v} {tau} {a}: {w} against {reference}"
-            );
-            assert!(
-                v * (1.0 - libm::expf(-w / tau)) <= a * w * 1.0001,
-                "{v} {tau} {a}"
-            );
-        }
-        // Within the limit already, or nothing to change: no window.
-        assert_eq!(window(10.0, 0.03, 475.0), 0.0);
-        assert_eq!(window(0.0, 0.03, 475.0), 0.0);
     }
 
     /// A fillet tighter than the limit allows at the speed needs the window that takes

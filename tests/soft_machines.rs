@@ -20,12 +20,7 @@ const ACCEL_SLACK: f64 = 1.02;
 /// The machine (the seed printhead, nozzle at layer height, real valves) at X/Y
 /// limit `a`, its valves made instantaneous if `instant`.
 fn soft(a: f32, instant: bool) -> Config {
-    let path = format!(
-        "{}/configs/soft-real-valves.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let mut c: Config = toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut c = bundled("soft-real-valves.toml");
     c.motion.max_accel_mm_s2[0] = a;
     c.motion.max_accel_mm_s2[1] = a;
     if instant {
@@ -39,17 +34,18 @@ fn soft(a: f32, instant: bool) -> Config {
     c
 }
 
-/// `c` with the food pastes' shear-thinning laws (`configs/food-pastes.toml`: mashed
-/// potato n 0.6, chocolate n 0.45) at `auto` pressure.
-fn shear_thinning(mut c: Config) -> Config {
-    for (i, (k, n)) in c.inlets.iter_mut().zip([(60.0, 0.6), (120.0, 0.45)]) {
-        i.rheology = dollop::rheology::Rheology::PowerLaw {
-            consistency_pa_sn: k,
-            flow_index: n,
-        };
-        i.pressure_kpa = dollop::config::Pressure::Auto;
-    }
-    c
+/// A config the repository ships in `configs/`.
+fn bundled(file: &str) -> Config {
+    let path = format!("{}/configs/{file}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// The machine at 500 mm/s^2 with the food pastes' shear-thinning laws (mashed
+/// potato n 0.6, chocolate n 0.45, `auto` pressure): the bundled
+/// `configs/soft-food-pastes.toml`, the one `docs/soft-machines.md` measures.
+fn soft_food_pastes() -> Config {
+    bundled("soft-food-pastes.toml")
 }
 
 /// Checks a run against the machine's bounds; returns (section off over 0.2 mm, its
@@ -84,29 +80,44 @@ fn board() -> dollop_sim::Job {
     job(&fill(24.0, 16, 1), chessboard(4.0))
 }
 
-/// Each valve decision sizes its own ramp window from the channel's contents then
-/// (`dollop::switch_window`): on the 4 mm board, with one paste in the channel at each
-/// decision, 83 cycles for paste B opening into paste A (the rise overtaking A's decay
-/// at 542 mm/s^2), 21 for B closing and for a bead's end, none at a bead's start; never
-/// under what keeps two thirds of a velocity step too small for `dollop::step_ramps`
-/// within the limit (57 cycles at 500 mm/s^2, 29 at 1 000; at 2 000 the flow needs no
-/// window at all). At 500 the machine's one window (415 cycles) smeared every change,
-/// 18.9 % off over 0.2 mm. Measured now (section off over 0.2 mm, X / Y peak): 500:
-/// 0.959 %, 435 / 259 mm/s^2; 1 000: 0.125 %, 490 / 492 (0.275 % when the floor was the
-/// whole step, 85 and 43 cycles); 2 000: 0.030 %, 824 / 988. Each is pinned a little
-/// above what it measured, and every axis within its limit with no slack (the held-out
-/// check allows 1.1 times).
+/// Each valve decision's flow change goes to the follower (`dollop::flow_follow`), and
+/// its ramp window is sized for the turns ahead and the plan's rounding only
+/// (`dollop::switch_window`): never under what keeps two thirds of a velocity step too
+/// small for `dollop::step_ramps` within the limit (57 cycles at 500 mm/s^2, 29 at
+/// 1 000). At 500 the machine's one window (415 cycles) smeared every change, 18.9 % off
+/// over 0.2 mm; a box window sized for each change (one paste in the channel), 0.959 %.
+/// Measured now (section off over 0.2 mm, X / Y peak while a valve is open): 500:
+/// 0.287 %, 504 / 259 mm/s^2 (X 496 less the f32 position's rounding: the
+/// follower's speed changes by 0.99 of the limit on a straight, and its placing adds to
+/// that); 1 000: 0.125 %, 490 / 492; 2 000: 0.030 %, 824 / 988. Each is pinned a little
+/// above what it measured; the axes within their limit with no slack at 1 000 and 2 000,
+/// and at 500 within the slack the food pastes' follower takes too, and within the limit
+/// itself less the rounding (the held-out check allows 1.1 times).
 #[test]
 fn real_valves_hold_the_section_and_the_limit_on_soft_machines() {
-    for (a, within) in [(500.0f32, 0.01), (1000.0, 0.0016), (2000.0, 0.0006)] {
+    for (a, within, slack) in [
+        (500.0f32, 0.0035, ACCEL_SLACK),
+        (1000.0, 0.0016, 1.0),
+        (2000.0, 0.0006, 1.0),
+    ] {
         let cfg = soft(a, false);
         let name = format!("chessboard/real valves {a}");
         let r = run(&cfg, &board());
         let (section, bound, _, _) = assert_soft(&name, &cfg, &r);
+        eprintln!(
+            "{name}: X {:.0} Y {:.0} mm/s^2 less the f32 position's rounding",
+            r.axis_accel_open_net[0], r.axis_accel_open_net[1]
+        );
         // Real valves ramp the flow themselves: no step forces more than 1 %.
         assert_eq!(bound, dollop::config::SECTION_BAND, "{a}");
         assert!(section <= within, "{a}: {section}");
-        assert_axes_within(&name, &cfg.validate::<f64, 4>().unwrap(), &r, 1.0);
+        assert_axes_within(&name, &cfg.validate::<f64, 4>().unwrap(), &r, slack);
+        for (axis, net) in ["X", "Y"].iter().zip(r.axis_accel_open_net) {
+            assert!(
+                net <= a as f64,
+                "{name}: {axis} {net:.0} mm/s^2 less the rounding"
+            );
+        }
     }
 }
 
@@ -377,7 +388,7 @@ fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
 /// window instead of the follower: band 0.066 on the chessboard PNG.
 #[test]
 fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
-    let cfg = shear_thinning(soft(500.0, false));
+    let cfg = soft_food_pastes();
     let name = "chessboard/shear-thinning pastes, real valves 500";
     let r = run_to_the_end(name, &cfg, &board());
     let m = cfg.validate::<f64, 4>().unwrap();
@@ -408,7 +419,7 @@ fn shear_thinning_pastes_with_real_valves_keep_the_limit_on_a_soft_machine() {
 /// out of one.
 #[test]
 fn a_shear_thinning_bead_keeps_its_section_through_tight_u_turns() {
-    let cfg = shear_thinning(soft(500.0, false));
+    let cfg = soft_food_pastes();
     let f = dollop_sim::designs::Fill {
         pitch_mm: 0.44,
         ..fill(6.0, 12, 1)

@@ -198,7 +198,7 @@ pub struct Executor<R: Real, const N: usize = { crate::DEFAULT_INLETS }> {
     /// A bead start's widening of the ramp's mean, put off to this plan cycle
     /// (`sizing::widen_when_due`): (cycle, half window).
     deferred: Option<(u64, u32)>,
-    /// The head's follower of a mixed channel's flow (`crate::flow_follow`), about
+    /// The head's follower of a valve decision's flow change (`crate::flow_follow`), about
     /// 3 KiB: last, so that the fields the tick reads keep their short offsets (the
     /// slowing's lag behind it cost every machine's tick an instruction or more).
     follow: crate::flow_follow::FlowFollow,

@@ -23,7 +23,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
             let per_unit = crate::ramp::frames_per_unit(step_ramp_accel(m), m.dt().to_f32());
             self.ramp
                 .reset(m.ramp_cycles, f, &mut self.step_ramps, per_unit);
-            // The follower of a mixed channel's flow: the whole X/Y limit in position
+            // The follower of a valve decision's flow: the whole X/Y limit in position
             // units a frame squared (it shares it with the head's turn itself).
             let dt = m.dt().to_f32();
             let a = m.motion.max_accel[0].min(m.motion.max_accel[1]).to_f32();
@@ -144,7 +144,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// Bends the ramp's mean where the flow's follower (`crate::flow_follow`) puts the
-    /// head. Out of line: only while a mixed channel's flow changes.
+    /// head. Out of line: only while a valve decision's flow changes.
     #[inline(never)]
     fn follow_flow(&mut self) {
         let c = *self.ramp.current();

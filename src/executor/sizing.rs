@@ -70,10 +70,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
     }
 
     /// The next step of a decision's sizing (`size_ramp`): the contents, the follower's
-    /// check, the flow's window, or the next `WALK_ITEMS` plan items of the walk over the
-    /// turns ahead. The window keeps the ring's width until the flow's change is sized,
-    /// four or five cycles after the decision (a real valve's dead time is a hundred); it
-    /// then narrows to that and widens as the walk finds turns that need it. In place: a
+    /// start, the walk's set-up, or the next `WALK_ITEMS` plan items of the walk over the
+    /// turns ahead. The window keeps the ring's width until the follower has started, a
+    /// few cycles after the decision (a real valve's dead time is a hundred); it then
+    /// narrows to the plan's rounding and widens as the walk finds turns that need it. In place: a
     /// sizing is some 150 bytes, and copying it out and back took a step from 430 to 670
     /// instructions. Out of line: only in the cycles after a decision.
     #[inline(never)]
@@ -112,8 +112,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.ramp.keep_slow();
             (None, false)
         } else if !w.sizing.sized() {
-            // The cycle that sizes the flow's change walks no turns yet (the rise's step
-            // and a walk's items together were the soft machine's dearest tick).
+            // The cycle that sets the walk up walks no turns yet (the flow's window and a
+            // walk's items together were the soft machine's dearest tick).
             let goal = w
                 .sizing
                 .step()
