@@ -87,9 +87,9 @@ fn board() -> dollop_sim::Job {
 /// 1 000). At 500 the machine's one window (415 cycles) smeared every change, 18.9 % off
 /// over 0.2 mm; a box window sized for each change (one paste in the channel), 0.959 %.
 /// Measured now (section off over 0.2 mm, X / Y peak while a valve is open): 500:
-/// 0.287 %, 504 / 259 mm/s^2 (X 496 less the f32 position's rounding: the
+/// 0.271 %, 507 / 259 mm/s^2 (X 496 less the f32 position's rounding: the
 /// follower's speed changes by 0.99 of the limit on a straight, and its placing adds to
-/// that); 1 000: 0.125 %, 490 / 492; 2 000: 0.030 %, 824 / 988. Each is pinned a little
+/// that); 1 000: 0.121 %, 519 / 492; 2 000: 0.030 %, 824 / 988. Each is pinned a little
 /// above what it measured; the axes within their limit with no slack at 1 000 and 2 000,
 /// and at 500 within the slack the food pastes' follower takes too, and within the limit
 /// itself less the rounding (the held-out check allows 1.1 times).

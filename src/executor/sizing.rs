@@ -108,7 +108,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             w.sizing.begin_follow();
             // The bead's speed per volume: position units (1e-4 mm) per volume unit
             // (1e-10 mm^3, `Vol`), through the bead's own section.
-            self.follow.start(w.inv_s.to_f32() * 1.0e-6);
+            // Saturating: a NaN or a negative time is no hold past the window's.
+            let change = (w.sizing.change_s() / self.machine.dt().to_f32()) as u32;
+            self.follow.start(w.inv_s.to_f32() * 1.0e-6, change);
             self.ramp.keep_slow();
             (None, false)
         } else if !w.sizing.sized() {
