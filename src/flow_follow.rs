@@ -1,17 +1,17 @@
 //! A slew-limited follower of the flow's speed through each valve decision's change
-//! (issue 22). With several pastes in the channel the valves change the flow faster than the X/Y limit allows (paste B's line
-//! closing into a channel still mostly paste A: from 14.8 to 4.2 mm/s in 26 ms, up to
-//! 1 124 mm/s^2 at the kink), and a centred box mean within the limit must be as wide as
-//! the change is large (24 ms on the fine features at 500 mm/s^2): it spreads the head's
-//! ramp over the change and its own width, 8 % off the section over 0.2 mm. This head
-//! speed `u` changes by at most `STRAIGHT` of the limit `a` a frame and aims between the
-//! highest speed from which the head can still meet the flow ahead (a sliding minimum
-//! over the frames the ring holds past the outputs') and the lowest from which it can,
-//! so that it starts slowing as late as the limit allows and meets the flow where the
-//! flow's own change drops within it; the lag `e` it builds returns at most 1 % of the
-//! speed (what that lays off the section). Offline on the fine features' worst stretch
-//! this took the section from 7.9 % off to 1.7 % at 475 mm/s^2; in the executor, 1.8 %
-//! away from turns.
+//! (issue 22). With several pastes in the channel the valves change the flow faster than
+//! the X/Y limit allows (paste B's line closing into a channel still mostly paste A: from
+//! 14.8 to 4.2 mm/s in 26 ms, up to 1 124 mm/s^2 at the kink), and a centred box mean
+//! within the limit must be as wide as the change is large (24 ms on the fine features at
+//! 500 mm/s^2): it spreads the head's ramp over the change and its own width, 8 % off the
+//! section over 0.2 mm. This head speed `u` changes by at most `STRAIGHT` of the limit `a`
+//! a frame and aims between the highest speed from which the head can still meet the flow
+//! ahead (a sliding minimum over the frames the ring holds past the outputs') and the
+//! lowest from which it can, so that it starts slowing as late as the limit allows and
+//! meets the flow where the flow's own change drops within it; the lag `e` it builds
+//! returns at most 1 % of the speed (what that lays off the section). Offline on the fine
+//! features' worst stretch this took the section from 7.9 % off to 1.7 % at 475 mm/s^2; in
+//! the executor, 1.8 % away from turns.
 //!
 //! Turns: the speed it aims at is the flow's on the mean's path (a window over a turn
 //! cuts the corner and slows there with the flow steady), planned by the mean's own path
@@ -316,12 +316,12 @@ impl FlowFollow {
 
     /// A valve decision, in a bead of `per_dv` position units a frame per volume unit a
     /// frame (1 / its section), whose flow change lies within `change` frames of it
-    /// (`Sizing::change_s`): on from the frames it plans next (those already
-    /// in the ring were planned before the decision's change), and on until the outputs
-    /// are a window past that change. Standing down two windows after the decision
-    /// instead, before a valve's 10 ms dead time had passed at 1 000 mm/s^2, it left most
-    /// changes to the ring's mean, narrowed for turns: the random pattern's band over
-    /// 0.02 mm was 0.0090 there (0.0034 now).
+    /// (`Sizing::change_s`): on from the frames it plans next (those already in the ring
+    /// were planned before the decision's change), and on until the outputs are a window
+    /// past that change. Standing down two half windows after the decision instead, before
+    /// a valve's 10 ms dead time had passed at 1 000 mm/s^2, it left most changes to the
+    /// ring's mean, narrowed for turns: the random pattern's band over 0.02 mm was 0.0090
+    /// there (0.0035 now).
     pub fn start(&mut self, per_dv: f32, change: u32) {
         self.since = 0;
         self.hold = (2 * self.half).saturating_add(change.min(i32::MAX as u32) as i32);

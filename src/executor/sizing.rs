@@ -73,9 +73,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
     /// start, the walk's set-up, or the next `WALK_ITEMS` plan items of the walk over the
     /// turns ahead. The window keeps the ring's width until the follower has started, a
     /// few cycles after the decision (a real valve's dead time is a hundred); it then
-    /// narrows to the plan's rounding and widens as the walk finds turns that need it. In place: a
-    /// sizing is some 150 bytes, and copying it out and back took a step from 430 to 670
-    /// instructions. Out of line: only in the cycles after a decision.
+    /// narrows to the plan's rounding and widens as the walk finds turns that need it. In
+    /// place: a sizing is some 150 bytes, and copying it out and back took a step from 430
+    /// to 670 instructions. Out of line: only in the cycles after a decision.
     #[inline(never)]
     pub(super) fn sizing_step(&mut self) {
         let cycle = self.cycle;
