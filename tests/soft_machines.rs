@@ -378,10 +378,11 @@ fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
 /// asked for a 4.7 ms window, and the head, riding the flow, braked at 839 mm/s^2 on X
 /// here (862 on the chessboard PNG). The window now counts the paste's own fall
 /// (`config::flow`'s `Decay`), the follower takes every change of such pastes
-/// (`switch_window`), and the ring holds the whole drop ahead of it. Measured: X 504
-/// (494 less the f32 position's rounding), Y 254 mm/s^2; band p99 - p1 over 0.2 mm
-/// 0.0169, within the 0.02; 2.39 % off over 0.2 mm of straight bead, where the
-/// floor allows 1.75 % in its measure: the follower's aim eases into the fall and out of
+/// (`switch_window`), and the ring holds the whole drop ahead of it. Measured now: X 507,
+/// Y 259 mm/s^2 while a valve is open; band p99 - p1 over 0.2 mm 0.0138, within the
+/// issue's 0.02; 2.32 % off over 0.2 mm of straight bead, where the floor allows 1.76 %
+/// in its measure (when first measured: X 504, 494 less the f32 position's rounding, Y
+/// 254; 0.0169; 2.39 % and 1.75 %): the follower's aim eases into the fall and out of
 /// it where the best head runs ahead first and undershoots the flow at the bottom. Worst
 /// boundary 0.0035 mm. With the follower's speed changing by 0.95 of the limit on a
 /// straight (the margin its turns take): X 484, band 0.0209, 2.78 %. With the machine's
