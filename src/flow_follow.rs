@@ -1022,4 +1022,74 @@ mod tests {
         assert!(tight < 8.5, "{tight}");
         assert!(whole > 9.9, "{whole}");
     }
+
+    /// The mean running round a circle of `r` units at `v` units a frame, the flow steady
+    /// at `flow` (its frames entering the envelopes as straight ones); the follower
+    /// started with `change` frames of hold. Returns the head's speed each frame and the
+    /// frame it stood down, if it did, within `frames`.
+    fn round(r: f32, v: f32, flow: f32, change: u32, frames: usize) -> (Vec<f32>, Option<usize>) {
+        let a = 0.05f32;
+        let mut f = FlowFollow::new();
+        f.reset(200, a);
+        f.start(1.0e-3, change);
+        let dv = (flow * 1000.0) as i32;
+        for _ in 0..200 {
+            f.push(0, dv, dv, || straight(flow));
+        }
+        let mut speeds = vec![];
+        for k in 0..frames {
+            f.push(0, dv, dv, || straight(flow));
+            let phi = k as f32 * v / r;
+            let at = [r * libm::sinf(phi), r * (1.0 - libm::cosf(phi))];
+            f.follow([0, 0], at, dv, true, (0, 0));
+            if !f.active() {
+                return (speeds, Some(k));
+            }
+            speeds.push(f.u);
+        }
+        (speeds, None)
+    }
+
+    /// A decision's hold: on a steady straight flow the follower stands down once the
+    /// outputs are two half windows past its start (200 frames of the ring, then 200 of
+    /// the outputs), and with a change of 1 000 frames that much later.
+    #[test]
+    fn holds_on_past_the_decisions_change() {
+        let off = |change: u32| round(1.0e9, 10.0, 10.0, change, 5000).1.unwrap();
+        let (none, held) = (off(0), off(1000));
+        assert!((199..=205).contains(&none), "{none}");
+        assert_eq!(held, none + 1000);
+    }
+
+    /// In a turn that takes more than a quarter of the limit the follower does not stand
+    /// down, whatever its hold. Where the turn at the mean's speed takes more than the
+    /// limit (10 units a frame on a radius of 1 000: twice it) and the head aims at or
+    /// below the mean (the flow a little slower), it slows to where the turn takes
+    /// `MARGIN` of the limit, never faster than a straight's change; aiming above
+    /// the mean (the flow a little faster), halfway there from the mean's speed.
+    #[test]
+    fn turns_keep_it_on_and_cap_it_below_the_mean() {
+        let a = 0.05f32;
+        // Half the limit round the turn: on throughout, at the mean's speed.
+        let (speeds, off) = round(4000.0, 10.0, 10.0, 0, 3000);
+        assert_eq!(off, None);
+        assert!(
+            speeds.iter().skip(2).all(|u| (u - 10.0).abs() < 0.05),
+            "{speeds:?}"
+        );
+        // Twice the limit: down to the cap, or halfway to it.
+        let cap = libm::sqrtf(MARGIN * a * 1000.0);
+        for (flow, to) in [(9.8, cap), (10.2, 10.0 + CAP_SHARE * (cap - 10.0))] {
+            let (speeds, off) = round(1000.0, 10.0, flow, 0, 800);
+            assert_eq!(off, None);
+            for w in speeds[2..].windows(2) {
+                assert!(w[0] - w[1] <= STRAIGHT * a * 1.001, "{w:?}");
+            }
+            let last = *speeds.last().unwrap();
+            assert!(
+                (last - to).abs() < 0.01 * to,
+                "flow {flow}: {last} against {to}"
+            );
+        }
+    }
 }
