@@ -20,7 +20,7 @@ const ACCEL_SLACK: f64 = 1.02;
 /// The machine (the seed printhead, nozzle at layer height, real valves) at X/Y
 /// limit `a`, its valves made instantaneous if `instant`.
 fn soft(a: f32, instant: bool) -> Config {
-    let mut c = bundled("soft-real-valves.toml");
+    let mut c = config("soft-real-valves.toml");
     c.motion.max_accel_mm_s2[0] = a;
     c.motion.max_accel_mm_s2[1] = a;
     if instant {
@@ -34,18 +34,11 @@ fn soft(a: f32, instant: bool) -> Config {
     c
 }
 
-/// A config the repository ships in `configs/`.
-fn bundled(file: &str) -> Config {
-    let path = format!("{}/configs/{file}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
-}
-
 /// The machine at 500 mm/s^2 with the food pastes' shear-thinning laws (mashed
 /// potato n 0.6, chocolate n 0.45, `auto` pressure): the bundled
 /// `configs/soft-food-pastes.toml`, the one `docs/soft-machines.md` measures.
 fn soft_food_pastes() -> Config {
-    bundled("soft-food-pastes.toml")
+    config("soft-food-pastes.toml")
 }
 
 /// Checks a run against the machine's bounds; returns (section off over 0.2 mm, its
