@@ -420,22 +420,16 @@ impl Plant {
     }
 }
 
-/// Solves sum_m V_m (a_m Q^n_m + b_m) = p by bisection on a bracket, then polishes with
-/// Newton: slow and sure.
+/// Solves sum_m V_m (a_m Q^n_m + b_m) = p (the yield terms `b_m` only on non-linear
+/// laws, as `drop_per_volume` has them). Newtonian content in closed form; otherwise by
+/// Newton's method on `x = ln Q`, where the power terms' sum is convex and increasing, from
+/// the least of the roots each term alone would have: at or above the root, so the steps
+/// fall to it without overshooting. `bisect` if that fails to settle. It took 50-odd
+/// bisection steps of two `pow`s each, 84 % of a food-paste job's simulation; Newton
+/// takes 5 to 8 of two `exp`s.
 fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
-    let drop = |q: f64| -> f64 {
-        laws.iter()
-            .zip(content)
-            .map(|(l, &v)| {
-                if v > 0.0 {
-                    v * l.drop_per_volume(q)
-                } else {
-                    0.0
-                }
-            })
-            .sum()
-    };
-    if p <= drop(0.0) {
+    let yields = drop(laws, content, 0.0);
+    if p <= yields {
         return 0.0;
     }
     // Newtonian content: the drop is linear in Q.
@@ -451,8 +445,63 @@ fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
             .sum();
         return p / r;
     }
+    let rest = p - yields;
+    let terms = || {
+        laws.iter()
+            .zip(content)
+            .filter(|(l, &v)| v > 0.0 && v * l.a > 0.0 && l.n > 0.0)
+            .map(|(l, &v)| (v * l.a, l.n))
+    };
+    let mut x = terms()
+        .map(|(c, n)| (rest / c).ln() / n)
+        .fold(f64::INFINITY, f64::min);
+    if !x.is_finite() {
+        return bisect(laws, content, p);
+    }
+    for _ in 0..NEWTON_STEPS {
+        let (mut g, mut dg) = (-rest, 0.0);
+        for (c, n) in terms() {
+            let t = c * (n * x).exp();
+            g += t;
+            dg += n * t;
+        }
+        let step = g / dg;
+        if !step.is_finite() {
+            break;
+        }
+        x -= step;
+        if step.abs() <= 1e-15 * x.abs().max(1.0) {
+            return x.exp();
+        }
+    }
+    bisect(laws, content, p)
+}
+
+/// Newton steps `solve` takes at most before it falls back on bisection (from above the
+/// root the error squares each step once near it: 5 to 8 are taken).
+const NEWTON_STEPS: usize = 60;
+
+/// The pressure drop over the channel's `content` at flow `q`, Pa.
+fn drop(laws: &[FlowLaw<f64>], content: &[f64], q: f64) -> f64 {
+    laws.iter()
+        .zip(content)
+        .map(|(l, &v)| {
+            if v > 0.0 {
+                v * l.drop_per_volume(q)
+            } else {
+                0.0
+            }
+        })
+        .sum()
+}
+
+/// [`solve`] by bisection on a bracket to 1e-15 relative: slow and sure.
+fn bisect(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
+    if p <= drop(laws, content, 0.0) {
+        return 0.0;
+    }
     let mut hi = 1.0;
-    while drop(hi) < p {
+    while drop(laws, content, hi) < p {
         hi *= 2.0;
         if hi > 1e12 {
             return hi;
@@ -461,7 +510,7 @@ fn solve(laws: &[FlowLaw<f64>], content: &[f64], p: f64) -> f64 {
     let mut lo = 0.0;
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if drop(mid) < p {
+        if drop(laws, content, mid) < p {
             lo = mid;
         } else {
             hi = mid;
@@ -484,6 +533,77 @@ mod tests {
         ))
         .unwrap();
         toml::from_str(&text).unwrap()
+    }
+
+    /// Newton's root is bisection's to 1e-10 relative and 1e-15 mm^3/s (the yield's
+    /// cancellation just over it) over channels of Newtonian, power-law and yield-stress
+    /// pastes, mixed or not, at pressures from just over the yield to far above it; the
+    /// drop at it is the pressure.
+    #[test]
+    fn newton_finds_the_root_bisection_finds() {
+        let d = 0.8;
+        let laws = [
+            FlowLaw::<f64>::new(
+                &dollop::rheology::Rheology::Newtonian {
+                    viscosity_pa_s: 1.41,
+                },
+                d,
+            ),
+            FlowLaw::new(
+                &dollop::rheology::Rheology::PowerLaw {
+                    consistency_pa_sn: 60.0,
+                    flow_index: 0.6,
+                },
+                d,
+            ),
+            FlowLaw::new(
+                &dollop::rheology::Rheology::PowerLaw {
+                    consistency_pa_sn: 120.0,
+                    flow_index: 0.45,
+                },
+                d,
+            ),
+            FlowLaw::new(
+                &dollop::rheology::Rheology::HerschelBulkley {
+                    yield_stress_pa: 40.0,
+                    consistency_pa_sn: 30.0,
+                    flow_index: 0.5,
+                },
+                d,
+            ),
+        ];
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for _ in 0..5_000 {
+            let mut content = [0.0; 4];
+            for v in content.iter_mut() {
+                if next() < 0.6 {
+                    *v = next() * 1.5;
+                }
+            }
+            if content.iter().all(|&v| v <= 0.0) {
+                continue;
+            }
+            let yields = drop(&laws, &content, 0.0);
+            let p = yields + 10f64.powf(next() * 8.0 - 3.0);
+            let (q, want) = (solve(&laws, &content, p), bisect(&laws, &content, p));
+            assert!(
+                (q - want).abs() <= 1e-10 * want + 1e-15,
+                "{content:?} at {p}: {q} against {want}"
+            );
+            if q > 0.0 {
+                let back = drop(&laws, &content, q);
+                assert!((back - p).abs() <= 1e-9 * p, "{back} against {p}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 4_000, "{checked}");
     }
 
     #[test]
