@@ -91,3 +91,35 @@ fn bad_files_are_refused_with_the_field_named() {
         .to_string();
     assert!(e.contains("at most 4"), "{e}");
 }
+
+/// A machine too soft for the flow's largest change is refused at `max_accel_mm_s2`, and
+/// each remedy its message names is one: the soft machine with real valves at
+/// 300 mm/s^2 (it named the valves' rise and decay times, which this machine already has).
+#[test]
+fn a_machine_too_soft_for_its_flow_is_told_what_would_do() {
+    let mut soft = load("soft-real-valves.toml");
+    soft.motion.max_accel_mm_s2 = [300.0, 300.0, 200.0];
+    let e = soft.validate::<f32, 4>().unwrap_err().to_string();
+    assert!(e.starts_with("motion.max_accel_mm_s2"), "{e}");
+    for remedy in ["raise it", "pressure_kpa", "slower pressure_rise_ms"] {
+        assert!(e.contains(remedy), "{e}");
+    }
+    let mut stiffer = soft.clone();
+    stiffer.motion.max_accel_mm_s2 = [500.0, 500.0, 200.0];
+    let mut lower = soft.clone();
+    for i in lower.inlets.iter_mut() {
+        if let Pressure::Kpa(p) = i.pressure_kpa {
+            i.pressure_kpa = Pressure::Kpa(p * 0.6);
+        }
+    }
+    let mut slower = soft.clone();
+    for i in slower.inlets.iter_mut() {
+        i.pressure_rise_ms = 60.0;
+        i.pressure_decay_ms = 60.0;
+    }
+    for (what, c) in [("stiffer", stiffer), ("lower", lower), ("slower", slower)] {
+        if let Err(e) = c.validate::<f32, 4>() {
+            panic!("{what}: {e}");
+        }
+    }
+}

@@ -184,8 +184,9 @@ impl fmt::Display for ConfigError {
                 f,
                 "the flow can change the head speed by {step} mm/s at once; a ramp within \
                  this acceleration takes {needed_ms} ms, longer than the {max_ms} ms the \
-                 executor holds: raise it, or give the valves pressure_rise_ms and \
-                 pressure_decay_ms"
+                 executor holds: raise it, lower the inlets' pressure_kpa (or the print \
+                 speed, with \"auto\" pressure), or give the valves slower \
+                 pressure_rise_ms and pressure_decay_ms"
             ),
         }
     }
