@@ -148,7 +148,10 @@ impl<R: Real, const N: usize> Executor<R, N> {
     #[inline(never)]
     fn follow_flow(&mut self) {
         let c = *self.ramp.current();
-        let printing = matches!(c.state, RunState::Printing | RunState::Settling);
+        let printing = matches!(
+            c.state,
+            RunState::Printing | RunState::Settling | RunState::Pausing
+        );
         let (base, off) = self.ramp.mean_parts(&mut self.step_ramps);
         let d = probe!(
             FOLLOW,
