@@ -270,6 +270,11 @@ impl<const N: usize> Ramp<N> {
         m
     }
 
+    /// Index of the newest frame (`StepRamps` counts by it).
+    pub fn newest(&self) -> u32 {
+        self.newest
+    }
+
     /// Window length, cycles.
     pub fn window(&self) -> usize {
         self.window as usize

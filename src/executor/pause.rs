@@ -8,7 +8,9 @@
 //!
 //! The latency rule: the valves are commanded shut within one control cycle of the
 //! request unless (a) a valve change is in flight (a switch commanded whose new inlet does
-//! not feed the channel yet, or a bead start whose valve has not acted yet), (b) a
+//! not feed the channel yet, or a bead start whose valve has not acted yet; on machines
+//! with speed ramps, also a flow step re-ramped over its own window that the stop's ramp
+//! would land on: `StepRamps::narrowed_ahead`), (b) a
 //! material boundary lies within the tail's reach of the valve cursor, or (c) the bead's
 //! planned end does. In (a) and (b) the valves shut at the first cycle where neither holds
 //! any more, that is once the switch the boundary needs has taken effect; in (c) the bead
@@ -210,7 +212,9 @@ impl<R: Real, const N: usize> Executor<R, N> {
             .iter()
             .take_while(|b| b.0 <= entry + reach)
             .all(|b| b.1 == m);
-        if end_clear && feeding && boundary_clear && self.others_spent(m) {
+        // A stop's ramp must not land on a re-ramped step's (`StepRamps::narrowed_ahead`).
+        let ramps_clear = !self.ramped || !self.step_ramps.narrowed_ahead(self.ramp.newest());
+        if end_clear && feeding && boundary_clear && ramps_clear && self.others_spent(m) {
             // The head follows the tail within the limit as at a bead's planned end: the
             // shut is a valve decision like the stop's (`size_ramp`). Without it the head
             // followed the food pastes' tail (flow ~ pressure^2.2, its 20 ms decay a 9 ms
