@@ -257,11 +257,9 @@ impl StepRamps {
     /// asked 66 frames after a change of paste's step, its stop's ramp on top of that
     /// step's, took X to 2 138 mm/s^2 on a 2 000 machine.
     pub fn narrowed_ahead(&self, newest: u32) -> bool {
-        let mask = crate::capacity::RAMP_CAPACITY as u32 - 1;
-        self.steps[..self.len as usize].iter().any(|s| {
-            s.half < self.half_max
-                && (newest.wrapping_sub(s.at) & mask) < (self.half_max + s.half) as u32
-        })
+        self.steps[..self.len as usize]
+            .iter()
+            .any(|s| s.half < self.half_max && self.m(newest, s.at) <= s.half)
     }
 
     /// Whether any step is being re-ramped.
