@@ -86,3 +86,60 @@ fn the_bundled_soft_machines_state_their_flow_changes() {
         "{out}"
     );
 }
+
+/// The row-end U-turns' load: stated for every machine, and a note with what would bring
+/// it back where the beads' speed takes more than 60 % of the X/Y limit round half the
+/// pitch (the food pastes at 20 mm/s on 1 000 mm/s^2 left the section by 17 % there,
+/// `docs/soft-machines.md`). Every bundled machine is within it.
+#[test]
+fn row_end_u_turns_past_the_limit_s_share_say_what_would_do() {
+    for name in [
+        "seed-paper.toml",
+        "seed-paper-valves.toml",
+        "food-pastes.toml",
+        "syringes.toml",
+        "soft-real-valves.toml",
+        "soft-instant-valves.toml",
+        "soft-food-pastes.toml",
+    ] {
+        let out = check(name);
+        assert!(
+            out.contains("  row-end U-turns         0.40 mm radius"),
+            "{name}: {out}"
+        );
+        assert!(!out.contains("note:"), "{name}: {out}");
+    }
+    let out = check("soft-food-pastes.toml");
+    assert!(
+        out.contains("at 10.00 mm/s: 250 mm/s^2, 50 % of the X/Y limit of 500 mm/s^2"),
+        "{out}"
+    );
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/soft-food-pastes.toml"),
+    )
+    .unwrap();
+    let fast = text
+        .replace(
+            "max_accel_mm_s2 = [500.0, 500.0, 200.0]",
+            "max_accel_mm_s2 = [1000.0, 1000.0, 200.0]",
+        )
+        .replace("print_speed_mm_s = 10.0", "print_speed_mm_s = 20.0");
+    assert_ne!(fast, text);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fast.toml");
+    std::fs::write(&path, fast).unwrap();
+    let out = check_path(&path);
+    assert!(
+        out.contains("at 20.00 mm/s: 1000 mm/s^2, 100 % of the X/Y limit of 1000 mm/s^2"),
+        "{out}"
+    );
+    // sqrt(0.6 * 1000 * 0.4) = 15.49 mm/s; 20^2 / 0.4 / 0.6 = 1667 mm/s^2.
+    assert!(
+        out.contains("note: the row-end U-turns (0.40 mm radius, half the 0.80 mm pitch) take 100 % of the X/Y limit at 20.0 mm/s"),
+        "{out}"
+    );
+    assert!(
+        out.contains("print_speed_mm_s at most 15.5, or an X/Y limit of at least 1667 mm/s^2"),
+        "{out}"
+    );
+}

@@ -232,3 +232,43 @@ fn the_calibration_pattern_is_written_with_markers() {
     assert_ne!(code, 0);
     assert!(err.contains("--calibration-pattern"), "{err}");
 }
+
+/// A design filled at a speed its row-end U-turns cannot take within the machine's share
+/// (`slicer::row_turns`) is sliced, with a note saying what would; a bundled machine's
+/// design gets no such note.
+#[test]
+fn slicing_too_fast_for_the_row_end_u_turns_says_what_would_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(manifest("../configs/soft-food-pastes.toml")).unwrap();
+    let fast = text.replace("print_speed_mm_s = 10.0", "print_speed_mm_s = 12.0");
+    assert_ne!(fast, text);
+    std::fs::write(d.join("fast.toml"), fast).unwrap();
+    let slice = |config: &str| {
+        dollop(
+            d,
+            &[
+                "slice",
+                &manifest("designs/random.png"),
+                "--config",
+                config,
+                "--width-mm",
+                "38.4",
+                "--out",
+                "random.dlp",
+            ],
+        )
+    };
+    let (code, out, err) = slice("fast.toml");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("wrote random.dlp"), "{out}");
+    // 12^2 / 0.4 = 360 mm/s^2, 72 % of 500; sqrt(0.6 * 500 * 0.4) = 10.95 mm/s.
+    assert!(
+        err.contains("dollop: note: the row-end U-turns (0.40 mm radius, half the 0.80 mm pitch) take 72 % of the X/Y limit at 12.0 mm/s")
+            && err.contains("print_speed_mm_s at most 11.0, or an X/Y limit of at least 600 mm/s^2"),
+        "{err}"
+    );
+    let (code, _, err) = slice(&manifest("../configs/soft-food-pastes.toml"));
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("U-turns"), "{err}");
+}

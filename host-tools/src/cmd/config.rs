@@ -123,6 +123,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             m.flow_accel
         );
     }
+    let turns = slicer::row_turns::RowTurns::of(&config, &m);
+    println!("{}", turns.line());
+    if let Some(advice) = turns.advice() {
+        println!("  note: {advice}");
+    }
     for (i, (inlet, c)) in m.inlets.iter().zip(config.inlets.iter()).enumerate() {
         println!(
             "  inlet {i} ({}): supply {:.2} kPa",

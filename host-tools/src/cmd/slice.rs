@@ -339,6 +339,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         )
     };
     let sliced = slicer::slice_design(&design, &config, &machine, &path)?;
+    // The design was filled in rows one pitch apart (another slicer's G-code has its
+    // own turns, and is not told this).
+    if let Some(advice) = slicer::row_turns::RowTurns::of(&config, &machine).advice() {
+        eprintln!("dollop: note: {advice}");
+    }
     finish(a, &req, config, machine, sliced)
 }
 

@@ -319,6 +319,21 @@ pub fn check(text: &str) -> ApiResult<Checked> {
         ),
         ("corner radius".into(), format!("{:.3} mm", m.corner_radius)),
     ];
+    // `dollop config --check`'s line, and its note when the U-turns take too much.
+    let turns = slicer::row_turns::RowTurns::of(&config, &m);
+    figures.push((
+        "row-end U-turns".into(),
+        format!(
+            "{:.2} mm radius at {:.2} mm/s: {:.0} mm/s², {:.0} % of the X/Y limit{}",
+            turns.radius_mm,
+            turns.speed_mm_s,
+            turns.accel,
+            turns.share() * 100.0,
+            turns
+                .advice()
+                .map_or(String::new(), |a| format!(". Note: {a}"))
+        ),
+    ));
     for (i, (inlet, c)) in m.inlets.iter().zip(config.inlets.iter()).enumerate() {
         figures.push((
             format!("inlet {i} ({}) supply", c.material),
@@ -832,6 +847,29 @@ mod tests {
         let c = check(seed()).expect("seed config");
         let s = c.derived.figures.iter().find(|f| f.0 == "bead section S");
         assert_eq!(s.map(|f| f.1.as_str()), Some("0.4800 mm²"));
+        let turns = |c: &Checked| {
+            c.derived
+                .figures
+                .iter()
+                .find(|f| f.0 == "row-end U-turns")
+                .map(|f| f.1.clone())
+                .unwrap_or_default()
+        };
+        assert_eq!(
+            turns(&c),
+            "0.40 mm radius at 10.00 mm/s: 250 mm/s², 12 % of the X/Y limit"
+        );
+        // Too fast for the U-turns between rows: the note says what would do.
+        let pastes = BUNDLED[2].1;
+        let fast = apply(pastes, &edit("motion.print_speed_mm_s", "16")).expect("applies");
+        let fast =
+            apply(&fast, &edit("motion.max_accel_mm_s2", "[1000, 1000, 200]")).expect("applies");
+        let t = turns(&check(&fast).unwrap_or_else(|e| panic!("{}", e.message())));
+        assert!(
+            t.contains("640 mm/s², 64 % of the X/Y limit. Note: ")
+                && t.contains("print_speed_mm_s at most 15.5"),
+            "{t}"
+        );
         assert!(c
             .fields
             .iter()

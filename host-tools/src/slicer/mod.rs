@@ -22,6 +22,7 @@ pub mod mesh;
 pub mod output;
 pub mod preview;
 pub mod request;
+pub mod row_turns;
 pub mod threemf;
 pub mod toolpath;
 pub mod voxel;
