@@ -131,6 +131,9 @@ pub struct Bounds {
     /// The bead section's bound over 0.2 mm (`Machine::section_bound`).
     pub section: f64,
     top_flow: f64,
+    /// What the row-end U-turns take of the X/Y limit (`slicer::row_turns`), when the
+    /// config validates.
+    row_turns: Option<slicer::row_turns::RowTurns>,
 }
 
 impl Bounds {
@@ -139,10 +142,12 @@ impl Bounds {
             Ok(m) => Bounds {
                 section: m.section_bound(),
                 top_flow: m.v_flow_max * m.bead_area,
+                row_turns: Some(slicer::row_turns::RowTurns::of(config, &m)),
             },
             Err(_) => Bounds {
                 section: dollop::config::SECTION_BAND,
                 top_flow: 0.0,
+                row_turns: None,
             },
         }
     }
@@ -174,6 +179,10 @@ pub fn warnings(r: &RunResult, config: &Config, bounds: &Bounds) -> Vec<String> 
             m.section_straight_worst_at[1],
             bound * 100.0
         ));
+        // The likeliest cause on a filled design, said where the user looks.
+        if let Some(advice) = bounds.row_turns.and_then(|t| t.advice()) {
+            w.push(advice);
+        }
     }
     let a_xy = config.motion.max_accel_mm_s2[0].min(config.motion.max_accel_mm_s2[1]) as f64;
     if r.peak_accel > a_xy * ACCEL_SLACK {
@@ -318,5 +327,35 @@ mod tests {
         let w = axis(&warnings(&shut, &config, &bounds));
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("valves shut"), "{w:?}");
+    }
+
+    /// A section off its bound on a machine whose row-end U-turns take more than their
+    /// share of the limit (`slicer::row_turns`) is warned of with what would bring them
+    /// back; within the share, or with the section within its bound, it is not.
+    #[test]
+    fn a_section_off_with_u_turns_too_fast_names_them() {
+        let config = crate::fixtures::example_config().unwrap();
+        let job = dollop_sim::designs::short_stripes();
+        let r = dollop_sim::run::<f32>(&config, &job, &Default::default(), |_| {}).unwrap();
+        let turns = |w: &[String]| w.iter().filter(|l| l.contains("U-turns")).count();
+        let mut off = r.clone();
+        off.metrics.section_straight_range = (0.97, 1.0);
+        let bounds = Bounds::of(&config);
+        let w = warnings(&off, &config, &bounds);
+        assert!(
+            w[0].starts_with("the bead section leaves its bound"),
+            "{w:?}"
+        );
+        assert_eq!(turns(&w), 0, "{w:?}");
+        // The soft food pastes' machine (500 mm/s^2) at 12 mm/s: 360 mm/s^2, 72 %.
+        let mut fast: Config =
+            toml::from_str(include_str!("../../../configs/soft-food-pastes.toml")).unwrap();
+        fast.motion.print_speed_mm_s = 12.0;
+        let bounds = Bounds::of(&fast);
+        assert!(bounds.row_turns.is_some());
+        let w = warnings(&off, &fast, &bounds);
+        assert_eq!(turns(&w), 1, "{w:?}");
+        assert!(w[1].contains("take 72 % of the X/Y limit"), "{w:?}");
+        assert_eq!(turns(&warnings(&r, &fast, &bounds)), 0);
     }
 }

@@ -99,7 +99,7 @@ impl RowTurns {
             )
         };
         Some(format!(
-            "the row-end U-turns ({:.2} mm radius, half the {:.2} mm pitch) take {:.0} % of the X/Y limit at {:.1} mm/s; past {:.0} % the head may have to slow in them while the flow does not, and the bead swells at the row ends (`dollop simulate --report` shows by how much): {lever}, or an X/Y limit of at least {:.0} mm/s^2, keeps them within {:.0} %",
+            "the row-end U-turns ({:.2} mm radius, half the {:.2} mm pitch) take {:.0} % of the X/Y limit at {:.1} mm/s; past {:.0} % the head may have to slow in them while the flow does not, and the bead swells at the row ends: {lever}, or an X/Y limit of at least {:.0} mm/s^2, keeps them within {:.0} %",
             self.radius_mm,
             2.0 * self.radius_mm,
             self.share() * 100.0,
