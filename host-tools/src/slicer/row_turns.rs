@@ -14,7 +14,11 @@ use super::INLETS;
 /// changes of paste need inside them. On the random pattern (`docs/soft-machines.md`,
 /// food pastes, `auto` pressure) at 1 000 mm/s^2, 56 % (15 mm/s) held every straight
 /// 0.2 mm within 1 %, 64 % (16 mm/s) left it by 1.33 %, 81 % by 2.63 % and 100 % (20 mm/s)
-/// by 17.1 %; at 2 000 mm/s^2, 72 % held and 98 % left it by 15.6 %.
+/// by 17.1 %; at 2 000 mm/s^2, 72 % held and 98 % left it by 15.6 %. With real valves
+/// (Newtonian pastes at fixed pressures, whose flow overshoots its steady speed after a
+/// change of paste) at 1 000 mm/s^2, 56 % left it by 2.22 %; 64 % took Y to 1 045 mm/s^2
+/// and 81 % X to 1 648 (the head met the U-turn at the overshoot's speed); 100 % faulted
+/// (more steps in a cycle than the drivers take).
 pub const ROW_TURN_SHARE: f64 = 0.6;
 
 /// The row-end U-turns' load at the beads' speed.
@@ -87,7 +91,8 @@ impl RowTurns {
 
     /// What to do, when the U-turns take more than `ROW_TURN_SHARE` of the limit.
     pub fn advice(&self) -> Option<String> {
-        if !(self.share() > ROW_TURN_SHARE) {
+        let share = self.share();
+        if share.is_nan() || share <= ROW_TURN_SHARE {
             return None;
         }
         let lever = if self.auto_pressure {
@@ -99,7 +104,7 @@ impl RowTurns {
             )
         };
         Some(format!(
-            "the row-end U-turns ({:.2} mm radius, half the {:.2} mm pitch) take {:.0} % of the X/Y limit at {:.1} mm/s; past {:.0} % the head may have to slow in them while the flow does not, and the bead swells at the row ends: {lever}, or an X/Y limit of at least {:.0} mm/s^2, keeps them within {:.0} %",
+            "the row-end U-turns ({:.2} mm radius, half the {:.2} mm pitch) take {:.0} % of the X/Y limit at {:.1} mm/s; past {:.0} % the head may have to slow in them while the flow does not: the bead swells at the row ends, and the axes may leave their limit there; {lever}, or an X/Y limit of at least {:.0} mm/s^2, keeps them within {:.0} %",
             self.radius_mm,
             2.0 * self.radius_mm,
             self.share() * 100.0,
