@@ -124,7 +124,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let turns = slicer::row_turns::RowTurns::of(&config, &m);
-    println!("{}", turns.line());
+    println!("  row-end U-turns         {}", turns.figure("mm/s^2"));
     if let Some(advice) = turns.advice() {
         println!("  note: {advice}");
     }

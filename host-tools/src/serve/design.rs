@@ -324,11 +324,8 @@ pub fn check(text: &str) -> ApiResult<Checked> {
     figures.push((
         "row-end U-turns".into(),
         format!(
-            "{:.2} mm radius at {:.2} mm/s: {:.0} mm/s², {:.0} % of the X/Y limit{}",
-            turns.radius_mm,
-            turns.speed_mm_s,
-            turns.accel,
-            turns.share() * 100.0,
+            "{}{}",
+            turns.figure("mm/s²"),
             turns
                 .advice()
                 .map_or(String::new(), |a| format!(". Note: {a}"))
@@ -857,7 +854,7 @@ mod tests {
         };
         assert_eq!(
             turns(&c),
-            "0.40 mm radius at 10.00 mm/s: 250 mm/s², 12 % of the X/Y limit"
+            "0.40 mm radius (half the pitch) at 10.00 mm/s: 250 mm/s², 12 % of the X/Y limit of 2000 mm/s²"
         );
         // Too fast for the U-turns between rows: the note says what would do.
         let pastes = BUNDLED[2].1;
@@ -866,7 +863,7 @@ mod tests {
             apply(&fast, &edit("motion.max_accel_mm_s2", "[1000, 1000, 200]")).expect("applies");
         let t = turns(&check(&fast).unwrap_or_else(|e| panic!("{}", e.message())));
         assert!(
-            t.contains("640 mm/s², 64 % of the X/Y limit. Note: ")
+            t.contains("640 mm/s², 64 % of the X/Y limit of 1000 mm/s². Note: ")
                 && t.contains("print_speed_mm_s at most 15.5"),
             "{t}"
         );

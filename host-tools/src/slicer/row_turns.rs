@@ -77,10 +77,11 @@ impl RowTurns {
         self.accel / ROW_TURN_SHARE
     }
 
-    /// The `config --check` line: the load, always.
-    pub fn line(&self) -> String {
+    /// The load, as `config --check` and the dashboard state it (`per_s2`: how the
+    /// page writes mm/s^2).
+    pub fn figure(&self, per_s2: &str) -> String {
         format!(
-            "  row-end U-turns         {:.2} mm radius (half the pitch) at {:.2} mm/s: {:.0} mm/s^2, {:.0} % of the X/Y limit of {:.0} mm/s^2",
+            "{:.2} mm radius (half the pitch) at {:.2} mm/s: {:.0} {per_s2}, {:.0} % of the X/Y limit of {:.0} {per_s2}",
             self.radius_mm,
             self.speed_mm_s,
             self.accel,
