@@ -10,13 +10,13 @@
 //! request unless (a) a valve change is in flight (a switch commanded whose new inlet does
 //! not feed the channel yet, or a bead start whose valve has not acted yet; on machines
 //! with speed ramps, also a flow step re-ramped over its own window that the stop's ramp
-//! would land on: `StepRamps::narrowed_ahead`), (b) a
-//! material boundary lies within the tail's reach of the valve cursor, (c) another inlet
-//! could take the junction back during the tail (another syringe's lag still running out,
-//! or a line that decays more slowly still holding pressure: `others_spent`), or (d) the
-//! bead's planned end does. In (a) to (c) the valves shut at the first cycle where none
-//! holds any more, that is once the switch the boundary needs has taken effect; in (d) the
-//! bead ends as planned and the pause follows at its end. The head is at rest (flow below
+//! would land on: `StepRamps::narrowed_ahead`), (b) a material boundary lies within the
+//! tail's reach of the valve cursor, (c) another inlet could take the junction back during
+//! the tail (another syringe's lag still running out, or a line that decays more slowly
+//! still holding pressure: `others_spent`), or (d) the bead's planned end does. In (a) to
+//! (c) the valves shut at the first cycle where none holds any more, that is once the
+//! switch the boundary needs has taken effect; in (d) the bead ends as planned and the
+//! pause follows at its end. The head is at rest (flow below
 //! `Machine::q_stop` and below 0.5 % of the flow at the request) one tail later, plus
 //! half a ramp window on machines with speed ramps.
 

@@ -28,8 +28,6 @@ pub struct RowTurns {
     pub radius_mm: f64,
     /// The fastest speed a bead runs once the channel has flushed, mm/s.
     pub speed_mm_s: f64,
-    /// What that speed takes round the fillet, `v^2 / r`, mm/s^2.
-    pub accel: f64,
     /// The machine's X/Y limit (the lower of the two), mm/s^2.
     pub limit: f64,
     /// Whether every inlet's pressure follows the print speed (`auto`): then
@@ -52,7 +50,6 @@ impl RowTurns {
         RowTurns {
             radius_mm,
             speed_mm_s,
-            accel: speed_mm_s * speed_mm_s / radius_mm,
             limit,
             auto_pressure: config
                 .inlets
@@ -61,9 +58,14 @@ impl RowTurns {
         }
     }
 
+    /// What the beads' speed takes round the fillet, `v^2 / r`, mm/s^2.
+    pub fn accel(&self) -> f64 {
+        self.speed_mm_s * self.speed_mm_s / self.radius_mm
+    }
+
     /// The share of the limit the U-turns take.
     pub fn share(&self) -> f64 {
-        self.accel / self.limit
+        self.accel() / self.limit
     }
 
     /// The fastest bead speed that keeps the U-turns within `ROW_TURN_SHARE`, mm/s.
@@ -74,7 +76,7 @@ impl RowTurns {
     /// The X/Y limit at which the beads' speed keeps the U-turns within
     /// `ROW_TURN_SHARE`, mm/s^2.
     pub fn limit_within(&self) -> f64 {
-        self.accel / ROW_TURN_SHARE
+        self.accel() / ROW_TURN_SHARE
     }
 
     /// The load, as `config --check` and the dashboard state it (`per_s2`: how the
@@ -84,7 +86,7 @@ impl RowTurns {
             "{:.2} mm radius (half the pitch) at {:.2} mm/s: {:.0} {per_s2}, {:.0} % of the X/Y limit of {:.0} {per_s2}",
             self.radius_mm,
             self.speed_mm_s,
-            self.accel,
+            self.accel(),
             self.share() * 100.0,
             self.limit
         )
@@ -108,7 +110,7 @@ impl RowTurns {
             "the row-end U-turns ({:.2} mm radius, half the {:.2} mm pitch) take {:.0} % of the X/Y limit at {:.1} mm/s; past {:.0} % the head may have to slow in them while the flow does not: the bead swells at the row ends, and the axes may leave their limit there; {lever}, or an X/Y limit of at least {:.0} mm/s^2, keeps them within {:.0} %",
             self.radius_mm,
             2.0 * self.radius_mm,
-            self.share() * 100.0,
+            share * 100.0,
             self.speed_mm_s,
             ROW_TURN_SHARE * 100.0,
             self.limit_within(),
