@@ -134,6 +134,12 @@ impl<R: Real> TurnSlow<R> {
         R::of(2.0) * r * x / span
     }
 
+    /// Whether the head at `v` mm/s in a fillet of radius `r` mm leaves the plan's speed:
+    /// past half the speed the fillet allows (`turn_accel`).
+    pub fn slows_in(&self, v: R, r: R) -> bool {
+        v * v > R::of(0.25) * self.turn_accel() * r
+    }
+
     /// Keeps the plan's speed `v`: nothing carried, no fillet.
     pub fn keep(&mut self, v: R) {
         self.u = v;
@@ -144,9 +150,7 @@ impl<R: Real> TurnSlow<R> {
     pub fn idle(&mut self, v: R, lag: R, ahead: &Ahead<R>) -> bool {
         let free = lag == R::ZERO
             && ahead.env2.is_none_or(|e| v * v <= e)
-            && ahead
-                .radius
-                .is_none_or(|r| v * v <= R::of(0.25) * self.turn_accel() * r);
+            && ahead.radius.is_none_or(|r| !self.slows_in(v, r));
         if free {
             self.u = v;
         }

@@ -432,3 +432,50 @@ fn a_shear_thinning_bead_keeps_its_section_through_tight_u_turns() {
     assert!(lo >= 0.99 && hi <= 1.01, "{name}: section {lo} .. {hi}");
     assert!(r.metrics.worst_section_straight() <= 0.01);
 }
+
+/// Real valves whose beads run past the row-end U-turns' share of the limit: both
+/// pressures doubled at 1 000 mm/s^2, so the beads run 20 mm/s round the rows' 0.4 mm
+/// U-turns, the whole limit (`dollop config --check` and `dollop slice` say so: past
+/// 60 % the section swells at the row ends and the axes may leave their limit). On the
+/// random cells the job runs to its end and the head stays on its path. Before, the
+/// flow's follower, with the mean's window as wide as the ring, ran the head under the
+/// flow until the lag outgrew the trail it is placed on, and the head left the path:
+/// 60 493 mm/s^2, a boundary 44 mm off here; on the 48 px random pattern a fault ("X
+/// needed 6 steps in one cycle"). Measured now: X 1 362 / Y 895 mm/s^2 while a valve is
+/// open, worst boundary 0.113 mm, 28.6 % off over 0.2 mm of straight bead. Pinned with a
+/// little room: the section and the limit are not held past the share.
+#[test]
+fn real_valves_past_the_u_turns_share_stay_on_the_path() {
+    let mut cfg = soft(1000.0, false);
+    for i in cfg.inlets.iter_mut() {
+        if let dollop::config::Pressure::Kpa(k) = i.pressure_kpa {
+            i.pressure_kpa = dollop::config::Pressure::Kpa(2.0 * k);
+        }
+    }
+    let cell = |x: f64, y: f64, _: usize| -> u8 {
+        let (i, j) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
+        let h = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) as u64;
+        (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63) as u8
+    };
+    let name = "random cells/real valves at twice the pressure, 1 000";
+    let r = run_to_the_end(name, &cfg, &job(&fill(16.0, 12, 1), cell));
+    eprintln!(
+        "{name}: X {:.0} Y {:.0} mm/s^2, {:.2} % off over 0.2 mm of straight bead",
+        r.axis_accel[0],
+        r.axis_accel[1],
+        r.metrics.worst_section_straight() * 100.0
+    );
+    for a in 0..2 {
+        assert!(
+            r.axis_accel[a] <= 1500.0,
+            "axis {a}: {} mm/s^2 at {} s",
+            r.axis_accel[a],
+            r.axis_accel_at[a]
+        );
+    }
+    assert!(
+        r.metrics.worst_boundary() <= 0.15,
+        "{}",
+        r.metrics.worst_boundary()
+    );
+}

@@ -57,11 +57,19 @@ impl<R: Real, const N: usize> Executor<R, N> {
         // its: it aims the head at the flow's speed and takes what a turn leaves of the
         // limit, and a plan slowed under it only had it pull the head back up (608 mm/s^2
         // on Y at a row end of random 0.8 mm cells at 500). A lag carried still returns.
-        if self.follow.active() {
-            inside = None;
-        }
         let inv_s = self.inv_s;
         let v = q * inv_s;
+        if self.follow.active() {
+            // A fillet this plan takes unslowed is in the ring until the outputs pass it:
+            // the follower stays on till then. It stood down as the mean neared such a
+            // U-turn (nothing turning at the outputs yet), and the head met it at the
+            // flow's speed: real valves whose beads run past the U-turns' share at
+            // 1 000 mm/s^2 (`dollop slice`'s note), X 1 678 mm/s^2 there; 1 244 now.
+            if inside.is_some_and(|(_, r, _)| self.turn_slow.slows_in(v, r)) {
+                self.follow.hold_ring();
+            }
+            inside = None;
+        }
         if inside.is_none() && self.lag == Vol::ZERO {
             self.turn_slow.keep(v);
             return;
