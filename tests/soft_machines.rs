@@ -312,6 +312,13 @@ fn run_to_the_end(name: &str, cfg: &Config, job: &dollop_sim::Job) -> RunResult 
     r
 }
 
+/// Paste A or B for the 0.8 mm cell holding (`x`, `y`) mm, from a fixed hash.
+fn random_cell(x: f64, y: f64, _: usize) -> u8 {
+    let (i, j) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
+    let h = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) as u64;
+    (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63) as u8
+}
+
 /// Random 0.8 mm cells (a 48 px random pattern's pixels at the default pitch), each cell
 /// paste A or B from a fixed hash: features shorter than the channel, so decisions find
 /// one paste in the channel now and then and several the next time, each sizing its own
@@ -332,12 +339,7 @@ fn run_to_the_end(name: &str, cfg: &Config, job: &dollop_sim::Job) -> RunResult 
 #[test]
 fn real_valves_at_500_keep_width_changes_smooth_on_random_cells() {
     let cfg = soft(500.0, false);
-    let cell = |x: f64, y: f64, _: usize| -> u8 {
-        let (i, j) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
-        let h = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) as u64;
-        (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63) as u8
-    };
-    let cells = job(&fill(16.0, 12, 1), cell);
+    let cells = job(&fill(16.0, 12, 1), random_cell);
     let r = run_to_the_end("random cells/real valves 500", &cfg, &cells);
     // Without the blend: X 540, Y 1 102 mm/s^2. Y met a row end's turn at 14.2 mm/s at
     // 504 mm/s^2 before the head slowed round it (471 now); the slack is the
@@ -452,13 +454,8 @@ fn real_valves_past_the_u_turns_share_stay_on_the_path() {
             i.pressure_kpa = dollop::config::Pressure::Kpa(2.0 * k);
         }
     }
-    let cell = |x: f64, y: f64, _: usize| -> u8 {
-        let (i, j) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
-        let h = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) as u64;
-        (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63) as u8
-    };
     let name = "random cells/real valves at twice the pressure, 1 000";
-    let r = run_to_the_end(name, &cfg, &job(&fill(16.0, 12, 1), cell));
+    let r = run_to_the_end(name, &cfg, &job(&fill(16.0, 12, 1), random_cell));
     eprintln!(
         "{name}: X {:.0} Y {:.0} mm/s^2, {:.2} % off over 0.2 mm of straight bead",
         r.axis_accel[0],
