@@ -462,14 +462,9 @@ fn real_valves_past_the_u_turns_share_stay_on_the_path() {
         r.axis_accel[1],
         r.metrics.worst_section_straight() * 100.0
     );
-    for a in 0..2 {
-        assert!(
-            r.axis_accel[a] <= 1500.0,
-            "axis {a}: {} mm/s^2 at {} s",
-            r.axis_accel[a],
-            r.axis_accel_at[a]
-        );
-    }
+    // 1.5 times the limit, on the raw differences.
+    let m = cfg.validate::<f64, 4>().unwrap();
+    assert_axes_within(name, &m, &r, 1.5);
     assert!(
         r.metrics.worst_boundary() <= 0.15,
         "{}",
