@@ -329,14 +329,7 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 // head's `v = Q / S`, and what turns volume into length.
                 self.inv_s = inv_s;
                 self.phase = Phase::Print { stopping: false };
-                // Open the valve of the material the cursor stands on.
-                self.want = Some(self.entry_material);
-                if self.sizing {
-                    self.size_ramp(Some(self.entry_material));
-                }
-                self.model.command(1 << self.entry_material);
-                self.stop.reset();
-                self.switch.reset();
+                self.open_bead();
                 Ok(false)
             }
             Item::Travel { to, index } => {
@@ -464,6 +457,28 @@ impl<R: Real, const N: usize> Executor<R, N> {
             self.plan.pop_front();
         }
         false
+    }
+
+    /// Opens the valve of the material the cursor stands on as a bead starts: that of the
+    /// last boundary already behind the cursor, if any (one that came due while the last
+    /// bead's stop ran out), else the one entering. Switching to it in the bead's first
+    /// cycle instead pulsed the other valve for a cycle.
+    fn open_bead(&mut self) {
+        let entry = self.head + self.machine.v_transit();
+        while let Some(&(u_b, m)) = self.boundaries.front() {
+            if u_b > entry {
+                break;
+            }
+            self.entry_material = m;
+            self.boundaries.pop_front();
+        }
+        self.want = Some(self.entry_material);
+        if self.sizing {
+            self.size_ramp(Some(self.entry_material));
+        }
+        self.model.command(1 << self.entry_material);
+        self.stop.reset();
+        self.switch.reset();
     }
 
     fn end_bead(&mut self, seg: Seg<R>, stopping: bool) {

@@ -167,7 +167,12 @@ impl<R: Real, const N: usize> Executor<R, N> {
                 if entry >= u_b {
                     self.boundaries.pop_front();
                 }
-            } else if entry + self.window >= u_b {
+            } else if entry + self.window >= u_b
+                && !matches!(self.phase, Phase::Print { stopping: true })
+            {
+                // Not while the bead's stop runs out: its valves are shut, and a switch
+                // would reopen one (the tail ran on to a second stop) for a paste that
+                // enters only when the next bead opens it (`Executor::open_bead`).
                 // Behind the cursor already (job start, or a lead the prediction missed):
                 // switch at once; otherwise when the predicted lead says so.
                 let due = entry >= u_b

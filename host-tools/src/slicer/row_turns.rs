@@ -16,8 +16,8 @@ use super::INLETS;
 /// 0.2 mm within 1 %, 64 % (16 mm/s) left it by 1.33 %, 81 % by 2.63 % and 100 % (20 mm/s)
 /// by 17.1 %; at 2 000 mm/s^2, 72 % held and 98 % left it by 15.6 %. With real valves
 /// (Newtonian pastes at fixed pressures, whose flow overshoots its steady speed after a
-/// change of paste) at 1 000 mm/s^2, 56 % left it by 2.22 %; 64 % took Y to 1 038 mm/s^2,
-/// 81 % to 1 244 (the head, lagging the flow out of a U-turn, speeds back up before its
+/// change of paste) at 1 000 mm/s^2, 56 % left it by 2.18 %; 64 % took Y to 1 030 mm/s^2,
+/// 81 % to 1 228 (the head, lagging the flow out of a U-turn, speeds back up before its
 /// turn has ended) and 100 % X to 1 381 (it meets a U-turn at the overshoot's speed).
 pub const ROW_TURN_SHARE: f64 = 0.6;
 
