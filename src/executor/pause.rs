@@ -148,10 +148,8 @@ impl<R: Real, const N: usize> Executor<R, N> {
         match self.phase {
             Phase::Pausing | Phase::Paused { on_bead: true } => {
                 self.phase = Phase::Print { stopping: false };
-                self.want = Some(self.entry_material);
-                self.model.command(1 << self.entry_material);
-                self.stop.reset();
-                self.switch.reset();
+                // As a bead's start: the flow rises from rest, the same valve decision.
+                self.open_bead();
             }
             Phase::Paused { on_bead: false } => {
                 self.phase = Phase::Idle;
