@@ -474,8 +474,7 @@ impl FlowFollow {
     /// limit instead (the margin the turns need), a fall on a straight was met at 0.95 of
     /// the limit and the lag it built spread over the bead past it.
     fn slew(&self, turn2: f32) -> f32 {
-        let top = self.straight_slew();
-        libm::sqrtf(max(top * top - turn2 / (MARGIN * MARGIN), 0.0))
+        crate::fast::root_of_square_less(self.straight_slew(), turn2 / (MARGIN * MARGIN))
     }
 
     /// What to add to the mean the outputs show (the newest frame's X/Y `base`, units, and
@@ -505,7 +504,8 @@ impl FlowFollow {
             return [0.0; 2];
         }
         let d2 = dx * dx + dy * dy;
-        let vm = libm::sqrtf(d2);
+        // A move along an axis (an image's rows) needs no root.
+        let vm = crate::fast::hypot(dx, dy);
         self.trail.advance(base, off, vm);
         let v = self.on_path(dv, vm, window);
         if !self.moving {
